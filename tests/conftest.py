@@ -1,0 +1,23 @@
+"""Shared fixtures: where ../shared is, and a skip when it is absent."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("BB2_SHARED", REPO.parent / "shared")).resolve()
+
+
+def shared_path(*parts: str) -> Path:
+    """Path under ../shared, or skip the test with a clear reason if it is not there."""
+    p = SHARED.joinpath(*parts)
+    if not p.exists():
+        pytest.skip(f"reference material not found: {p} (../shared is not beside this clone)")
+    return p
+
+
+@pytest.fixture
+def shared():
+    return shared_path
