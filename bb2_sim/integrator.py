@@ -1,0 +1,81 @@
+"""Fixed-step ode3 (Bogacki-Shampine) with the Simulink block semantics of the reference (SPEC 11).
+
+One major step n -> n+1 (t_n = n h):
+
+1. output at (t_n, x_n): the commands go through the discrete rate limiters (direct feed-through) and the
+   model is evaluated with the Derivative blocks against the previous major sample -> k1, loads, outputs;
+2. update: the limiters keep y_n, the Derivative blocks store (t_n, u_n);
+3. k2 = f(t_n + h/2, x_n + h/2 k1), k3 = f(t_n + 3h/4, x_n + 3h/4 k2) with held actuator outputs,
+   x_{n+1} = x_n + h (2/9 k1 + 1/3 k2 + 4/9 k3).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .actuators import ActuatorOutputs, Actuators
+from .added_mass import DerivativeMemory
+from .model import BB2Model, Evaluation
+
+
+class NonFiniteStateError(FloatingPointError):
+    """The simulation produced a NaN or inf state (the model diverged)."""
+
+    def __init__(self, t: float, state: np.ndarray, what: str = "state"):
+        self.t = t
+        self.state = state
+        names = ["x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r"]
+        bad = [n for n, s in zip(names, state) if not np.isfinite(s)] if len(state) == 12 else []
+        super().__init__(f"simulation diverged at t = {t:.2f} s: non-finite {what}"
+                         + (f" ({', '.join(bad)})" if bad else ""))
+
+
+@dataclass
+class StepRecord:
+    """What a major step logs: the state at t_n, the loads of the major evaluation, the actuators."""
+
+    t: float
+    x: np.ndarray
+    commands_planes_deg: np.ndarray
+    command_rps: float
+    act: ActuatorOutputs
+    ev: Evaluation
+
+
+class Simulator:
+    """Integrates a :class:`BB2Model` from x0 with ode3 at h, commands held per step."""
+
+    def __init__(self, model: BB2Model, x0: np.ndarray, t0: float = 0.0, h: float | None = None):
+        self.model = model
+        self.h = float(h if h is not None else model.params.h)
+        self.t0 = float(t0)
+        self.n = 0
+        self.x = np.asarray(x0, dtype=float).copy()
+        if self.x.shape != (12,) or not np.all(np.isfinite(self.x)):
+            raise ValueError("initial state must be 12 finite numbers [x y z phi theta psi u v w p q r]")
+        self.actuators = Actuators(model.params, self.h)
+        self.dmem = DerivativeMemory()
+
+    @property
+    def t(self) -> float:
+        return self.t0 + self.n * self.h
+
+    def step(self, planes_cmd_deg, rps_cmd: float, dmass_cmd_kg: float = 0.0) -> StepRecord:
+        """Advance one major step with the given commands; returns the record of t_n."""
+        h, t, x = self.h, self.t, self.x
+        planes_cmd = np.asarray(planes_cmd_deg, dtype=float)
+        act = self.actuators.step(planes_cmd, rps_cmd, dmass_cmd_kg)
+        f = self.model.evaluate
+        ev1 = f(t, x, act, self.dmem)
+        self.dmem.store(t, ev1.urel_sections)
+        k1 = ev1.xdot
+        k2 = f(t + h * 0.5, x + (h * 0.5) * k1, act, self.dmem).xdot
+        k3 = f(t + h * 0.75, x + (h * 0.75) * k2, act, self.dmem).xdot
+        x_new = x + h * (2.0 / 9.0 * k1 + 1.0 / 3.0 * k2 + 4.0 / 9.0 * k3)
+        rec = StepRecord(t, x.copy(), planes_cmd, float(rps_cmd), act, ev1)
+        if not np.all(np.isfinite(x_new)):
+            raise NonFiniteStateError(t + h, x_new)
+        self.x = x_new
+        self.n += 1
+        return rec
