@@ -25,6 +25,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy import linalg, signal
 
+from bb2_control.errors import ControlConfigError, NonFiniteInputError
+
 __all__ = [
     "L1DesignError",
     "NonFiniteInputError",
@@ -36,12 +38,8 @@ __all__ = [
 ]
 
 
-class L1DesignError(ValueError):
+class L1DesignError(ControlConfigError):
     """The desired system / filter / sample time do not define a valid L1 channel."""
-
-
-class NonFiniteInputError(ValueError):
-    """A controller input (reference or measurement) is NaN or infinite."""
 
 
 def _mat(x: Any, name: str) -> np.ndarray:

@@ -1,0 +1,54 @@
+"""Loading of bb2_control data files (YAML or JSON) and nested overrides."""
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+from bb2_control.errors import ControlConfigError
+
+DATA_DIR = Path(__file__).resolve().parent / "data"
+
+__all__ = ["DATA_DIR", "load_mapping", "load_data", "deep_merge", "require"]
+
+
+def load_mapping(path: str | Path) -> dict[str, Any]:
+    """Read a YAML (.yaml/.yml) or JSON (.json) file holding a mapping."""
+    p = Path(path)
+    if not p.is_file():
+        raise ControlConfigError(f"configuration file not found: {p}")
+    text = p.read_text()
+    try:
+        data = json.loads(text) if p.suffix.lower() == ".json" else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError) as exc:
+        raise ControlConfigError(f"cannot parse {p}: {exc}") from None
+    if not isinstance(data, dict):
+        raise ControlConfigError(f"{p} must hold a mapping at top level, got {type(data).__name__}")
+    return data
+
+
+def load_data(name: str) -> dict[str, Any]:
+    """Load ``bb2_control/data/<name>.yaml``."""
+    return load_mapping(DATA_DIR / f"{name}.yaml")
+
+
+def deep_merge(base: Mapping[str, Any], overrides: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Copy of ``base`` with ``overrides`` applied recursively (mappings merge, other values replace)."""
+    out = copy.deepcopy(dict(base))
+    for k, v in (overrides or {}).items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+            out[k] = deep_merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+def require(cfg: Mapping[str, Any], key: str, where: str) -> Any:
+    """``cfg[key]`` or a ControlConfigError naming the missing key and the section."""
+    try:
+        return cfg[key]
+    except (KeyError, TypeError):
+        raise ControlConfigError(f"{where}: missing key {key!r}") from None
