@@ -1,0 +1,235 @@
+"""The BB2 topic contract: topic names, standard message types, QoS, frame ids and units.
+
+Everything in this module is plain data usable without ROS; only :func:`qos_profile` imports
+rclpy (inside the function).  The Jazzy wheels here cannot build custom interfaces, so every topic
+uses a standard message type.
+
+Frames (REP-103 / REP-105): the world frame is ENU (``map``; ``odom`` coincides with it because the
+simulator publishes ground truth), the body frame is ``base_link`` FLU (x forward, y port, z up) at
+the centre of gravity.  The marine variants ``map_ned`` (NED) and ``base_link_frd`` (FRD) exist
+as an option for consumers that want them (see :mod:`bb2_sim.frames` for the math).
+
+Time stamps: every stamped message carries the simulation time (``/clock`` with use_sim_time).
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any
+
+
+class ContractError(ValueError):
+    """A topic or QoS name that is not part of the contract."""
+
+
+# ----------------------------------------------------------------------------------------- frames
+FRAME_MAP = "map"
+"""World frame, ENU, origin at the native earth origin (calm surface, z = 0)."""
+FRAME_ODOM = "odom"
+"""Odometry frame, ENU; identical to ``map`` (ground truth, no drift)."""
+FRAME_BASE_LINK = "base_link"
+"""Body frame FLU at the CG."""
+FRAME_MAP_NED = "map_ned"
+"""Optional marine world frame, NED (x north = ENU y, y east = ENU x, z down)."""
+FRAME_BASE_LINK_FRD = "base_link_frd"
+"""Optional marine body frame FRD at the CG."""
+FRAME_PATH = "path_frenet"
+"""Path frame at the closest path point: x along the path tangent, y left, z up (errors)."""
+
+FRAMES: dict[str, str] = {
+    FRAME_MAP: "world, ENU (REP-103), z = 0 on the calm surface",
+    FRAME_ODOM: "odometry world frame, ENU, equal to map (simulator ground truth)",
+    FRAME_BASE_LINK: "body at the CG, FLU: x forward, y port, z up",
+    FRAME_MAP_NED: "optional marine world frame, NED",
+    FRAME_BASE_LINK_FRD: "optional marine body frame at the CG, FRD",
+    FRAME_PATH: "path (Serret-Frenet-like) frame: x along track, y left, z up",
+}
+
+PLANE_JOINTS: tuple[str, ...] = ("delta1", "delta2", "delta3", "delta4", "delta5")
+"""Joint names of the five control planes in JointState messages (rad, ROM sign convention)."""
+PROPELLER_JOINT = "propeller"
+"""Joint name of the propeller in JointState messages (velocity, rad/s)."""
+VH_JOINTS: tuple[str, ...] = ("delta_V", "delta_H")
+"""Joint names of the virtual vertical/horizontal plane commands of the autopilot (rad)."""
+
+
+# ----------------------------------------------------------------------------------------- QoS
+@dataclass(frozen=True)
+class QosDescription:
+    """A QoS profile as plain data (the names rosbag2 writes in metadata version 9)."""
+
+    reliability: str  # "reliable" | "best_effort"
+    durability: str  # "volatile" | "transient_local"
+    history: str  # "keep_last" | "keep_all"
+    depth: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"reliability": self.reliability, "durability": self.durability,
+                "history": self.history, "depth": self.depth}
+
+
+QOS: dict[str, QosDescription] = {
+    # rclpy qos_profile_sensor_data: best effort, volatile, keep last 5
+    "sensor": QosDescription("best_effort", "volatile", "keep_last", 5),
+    # commands and guidance outputs: every sample matters
+    "command": QosDescription("reliable", "volatile", "keep_last", 10),
+    # paths are latched so a late subscriber (RViz, recorder) gets the current path
+    "latched": QosDescription("reliable", "transient_local", "keep_last", 1),
+    # rclcpp::ClockQoS, as rosbag2's player publishes /clock: best effort, keep last 1
+    "clock": QosDescription("best_effort", "volatile", "keep_last", 1),
+    # status / diagnostics
+    "status": QosDescription("reliable", "volatile", "keep_last", 10),
+}
+
+
+# ----------------------------------------------------------------------------------------- topics
+@dataclass(frozen=True)
+class TopicSpec:
+    """One row of the contract."""
+
+    name: str
+    type: str  # ROS 2 type name, "pkg/msg/Type"
+    qos: str  # key of QOS
+    frame: str
+    units: str
+    publisher: str
+    subscribers: tuple[str, ...]
+    description: str
+    bag_only: bool = False  # written into bags only (e.g. /tf: tf2_msgs is not in the wheels)
+
+    @property
+    def qos_description(self) -> QosDescription:
+        return QOS[self.qos]
+
+
+SIM = "simulator"
+PLANNER = "planner"
+PATHF = "path_following"
+AUTOPILOT = "l1_autopilot"
+MIXER = "mixer"
+RECORDER = "recorder"
+EXTERNAL = "(external tools)"
+
+CONTRACT: tuple[TopicSpec, ...] = (
+    TopicSpec("/clock", "rosgraph_msgs/msg/Clock", "clock", "-", "s (sim time)", SIM,
+              (PLANNER, PATHF, AUTOPILOT, MIXER, RECORDER), "simulation time (use_sim_time)"),
+    TopicSpec("/bb2/odom", "nav_msgs/msg/Odometry", "sensor", "odom -> base_link",
+              "m, quaternion; m/s, rad/s (twist in base_link)", SIM, (PATHF, AUTOPILOT, RECORDER),
+              "ground-truth pose (ENU) and body twist (FLU) of the CG"),
+    TopicSpec("/bb2/imu", "sensor_msgs/msg/Imu", "sensor", "base_link",
+              "quaternion; rad/s; m/s^2 (specific force, includes gravity reaction)", SIM,
+              (AUTOPILOT, RECORDER), "IMU at the CG: orientation, angular velocity, specific force"),
+    TopicSpec("/bb2/depth", "sensor_msgs/msg/FluidPressure", "sensor", "base_link",
+              "Pa (absolute: p_atm + rho g depth)", SIM, (AUTOPILOT, RECORDER),
+              "pressure depth sensor at the CG"),
+    TopicSpec("/bb2/altitude", "sensor_msgs/msg/Range", "sensor", "base_link",
+              "m (float32), range to the bottom straight down", SIM, (PATHF, RECORDER),
+              "altimeter; +inf when no bottom within max_range"),
+    TopicSpec("/bb2/planes/state", "sensor_msgs/msg/JointState", "sensor", "base_link",
+              "rad (position), rad/s (velocity)", SIM, (RECORDER,),
+              "actual deflections delta1..delta5 after the actuator model"),
+    TopicSpec("/bb2/propeller/state", "sensor_msgs/msg/JointState", "sensor", "base_link",
+              "rad/s (velocity)", SIM, (RECORDER,), "actual propeller shaft speed"),
+    TopicSpec("/bb2/planes/cmd", "sensor_msgs/msg/JointState", "command", "base_link",
+              "rad (position)", MIXER, (SIM, RECORDER),
+              "commanded deflections delta1..delta5 (stamp checked for staleness)"),
+    TopicSpec("/bb2/propeller/cmd", "sensor_msgs/msg/JointState", "command", "base_link",
+              "rad/s (velocity)", AUTOPILOT, (SIM, RECORDER), "commanded propeller shaft speed"),
+    TopicSpec("/bb2/path", "nav_msgs/msg/Path", "latched", "map", "m (ENU), quaternion (path tangent)",
+              PLANNER, (PATHF, RECORDER), "Bernstein path samples"),
+    TopicSpec("/bb2/guidance/rate_cmd", "geometry_msgs/msg/Vector3Stamped", "command", "base_link",
+              "rad/s: x = 0, y = -q_c, z = r_c (FLU body rates)", PATHF, (AUTOPILOT, RECORDER),
+              "path-following pitch/yaw rate commands"),
+    TopicSpec("/bb2/guidance/path_error", "geometry_msgs/msg/Vector3Stamped", "command", FRAME_PATH,
+              "m: x along track, y cross track (left), z vertical (up)", PATHF, (RECORDER,),
+              "vehicle position minus closest path point, in the path frame"),
+    TopicSpec("/bb2/mission/progress", "std_msgs/msg/Float64", "command", "-", "1 (0..1)", PATHF,
+              (RECORDER,), "fraction of the path length travelled"),
+    TopicSpec("/bb2/autopilot/vh_cmd", "sensor_msgs/msg/JointState", "command", "base_link",
+              "rad (position of delta_V, delta_H)", AUTOPILOT, (MIXER, RECORDER),
+              "virtual vertical/horizontal plane commands"),
+    TopicSpec("/bb2/status", "diagnostic_msgs/msg/DiagnosticArray", "status", "-",
+              "key/values (mode, failsafe, rates, overruns)", SIM, (RECORDER,),
+              "what the simulator (and each node) is doing"),
+    TopicSpec("/tf", "tf2_msgs/msg/TFMessage", "command", "odom -> base_link", "m, quaternion",
+              RECORDER, (EXTERNAL,), "derived from /bb2/odom by the recorder (bags only)",
+              bag_only=True),
+)
+
+_BY_NAME = {t.name: t for t in CONTRACT}
+
+
+def topic(name: str) -> TopicSpec:
+    """The contract row of a topic, or :class:`ContractError`."""
+    try:
+        return _BY_NAME[name]
+    except KeyError:
+        raise ContractError(f"unknown topic {name!r}; the contract has: {', '.join(_BY_NAME)}") from None
+
+
+def select_topics(patterns: list[str] | None = None, *, include_bag_only: bool = False) -> list[TopicSpec]:
+    """Contract topics matching any of ``patterns`` (exact names or regular expressions, full match).
+
+    ``None`` or an empty list selects every topic.  A pattern that matches nothing is an error
+    (it is almost always a typo).
+    """
+    rows = [t for t in CONTRACT if include_bag_only or not t.bag_only]
+    if not patterns:
+        return rows
+    out: list[TopicSpec] = []
+    for pat in patterns:
+        try:
+            rx = re.compile(pat)
+        except re.error as exc:
+            raise ContractError(f"bad topic pattern {pat!r}: {exc}") from None
+        hits = [t for t in rows if t.name == pat or rx.fullmatch(t.name)]
+        if not hits:
+            raise ContractError(f"topic pattern {pat!r} matches no contract topic")
+        out.extend(t for t in hits if t not in out)
+    return out
+
+
+def qos_profile(name: str):
+    """The rclpy ``QoSProfile`` of a topic (by topic name) or of a QoS key of :data:`QOS`."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    if name in QOS:
+        desc = QOS[name]
+    else:
+        desc = topic(name).qos_description
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST if desc.history == "keep_last" else HistoryPolicy.KEEP_ALL,
+        depth=desc.depth,
+        reliability=(ReliabilityPolicy.RELIABLE if desc.reliability == "reliable"
+                     else ReliabilityPolicy.BEST_EFFORT),
+        durability=(DurabilityPolicy.TRANSIENT_LOCAL if desc.durability == "transient_local"
+                    else DurabilityPolicy.VOLATILE),
+    )
+
+
+def message_class(type_name: str):
+    """The Python message class of a ``pkg/msg/Type`` name (imports the ROS message package)."""
+    import importlib
+
+    parts = type_name.split("/")
+    if len(parts) != 3 or parts[1] != "msg":
+        raise ContractError(f"not a message type name 'pkg/msg/Type': {type_name!r}")
+    try:
+        return getattr(importlib.import_module(f"{parts[0]}.msg"), parts[2])
+    except (ImportError, AttributeError):
+        raise ContractError(f"message type {type_name!r} is not installed") from None
+
+
+def contract_markdown(*, include_bag_only: bool = True) -> str:
+    """The contract as a Markdown table (for the README)."""
+    head = ("| topic | type | QoS | frame | units | publisher | subscribers |\n"
+            "|---|---|---|---|---|---|---|\n")
+    rows = []
+    for t in CONTRACT:
+        if t.bag_only and not include_bag_only:
+            continue
+        q = t.qos_description
+        qos = f"{q.reliability}, {q.durability}, {q.history} {q.depth}"
+        rows.append(f"| `{t.name}` | `{t.type}` | {qos} | {t.frame} | {t.units} | {t.publisher} | "
+                    f"{', '.join(t.subscribers)} |")
+    return head + "\n".join(rows) + "\n"

@@ -1,0 +1,397 @@
+"""numpy <-> ROS 2 message conversions of the BB2 contract.
+
+The numerical functions (``*_arrays``, :func:`specific_force_flu`, :func:`depth_to_pressure` ...)
+are plain numpy; the message builders import the ROS message packages inside the function, so
+this module imports without rclpy.
+
+Conventions (see :mod:`bb2_msgs_py.contract` and :mod:`bb2_sim.frames`, the only frame math):
+
+* the ROM state is native (earth z up, bow along -x at psi = 0; body x aft / y stbd / z up);
+  messages are REP-103: world ENU, body FLU (``base_link``).
+* plane deflections are radians in messages (ROM sign convention, unchanged), degrees only in the
+  ``*_deg`` helpers at the edges.
+* a time ``t`` (s) becomes a stamp of whole nanoseconds (``round(t * 1e9)``).
+"""
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from bb2_sim import frames
+from bb2_sim.state import VehicleState
+
+from .contract import (FRAME_BASE_LINK, FRAME_MAP, FRAME_ODOM, FRAME_PATH, PLANE_JOINTS,
+                       PROPELLER_JOINT, VH_JOINTS, ContractError)
+
+SENSORS_YAML = Path(__file__).resolve().parent / "data" / "sensors.yaml"
+
+
+class ConversionError(ContractError):
+    """A message or array that cannot be converted (wrong names, sizes, frames, non-finite)."""
+
+
+@lru_cache(maxsize=1)
+def sensor_model() -> dict[str, Any]:
+    """The sensor model constants of ``data/sensors.yaml`` (units in the key names)."""
+    import yaml
+
+    with open(SENSORS_YAML, encoding="utf-8") as fh:
+        return yaml.safe_load(fh)
+
+
+# ----------------------------------------------------------------------------------------- time
+def seconds_to_ns(t: float) -> int:
+    """Seconds -> integer nanoseconds (rounded)."""
+    if not math.isfinite(t):
+        raise ConversionError(f"time must be finite, got {t!r}")
+    return int(round(t * 1e9))
+
+
+def stamp(t: float):
+    """``builtin_interfaces/Time`` of ``t`` seconds (t >= 0)."""
+    from builtin_interfaces.msg import Time
+
+    ns = seconds_to_ns(t)
+    if ns < 0:
+        raise ConversionError(f"stamps must be >= 0 s, got {t!r}")
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def stamp_to_seconds(st) -> float:
+    """Seconds of a ``builtin_interfaces/Time``."""
+    return st.sec + st.nanosec * 1e-9
+
+
+def stamp_to_ns(st) -> int:
+    """Integer nanoseconds of a ``builtin_interfaces/Time``."""
+    return st.sec * 1_000_000_000 + st.nanosec
+
+
+def _header(t: float, frame_id: str):
+    from std_msgs.msg import Header
+
+    return Header(stamp=stamp(t), frame_id=frame_id)
+
+
+def clock_message(t: float):
+    """``rosgraph_msgs/Clock`` at ``t`` seconds."""
+    from rosgraph_msgs.msg import Clock
+
+    return Clock(clock=stamp(t))
+
+
+def _vec3(a) -> np.ndarray:
+    a = np.asarray(a, dtype=float)
+    if a.shape != (3,):
+        raise ConversionError(f"expected a 3-vector, got shape {a.shape}")
+    return a
+
+
+# ----------------------------------------------------------------------------------------- odometry
+def state_to_enu_arrays(state: VehicleState) -> dict[str, np.ndarray]:
+    """ROM state -> REP-103 arrays: ``p_enu``, ``q_enu_flu`` (x, y, z, w), ``v_flu``, ``w_flu``."""
+    phi, theta, psi = (float(x) for x in state.euler_native)
+    return {
+        "p_enu": frames.earth_native_to_enu(_vec3(state.p_native)),
+        "q_enu_flu": frames.quaternion_from_rotation(frames.rotation_enu_flu(phi, theta, psi)),
+        "v_flu": frames.body_native_to_flu(_vec3(state.v_body_native)),
+        "w_flu": frames.body_native_to_flu(_vec3(state.w_body_native)),
+    }
+
+
+def enu_arrays_to_state(t: float, p_enu, q_enu_flu, v_flu, w_flu) -> VehicleState:
+    """Inverse of :func:`state_to_enu_arrays` (psi wrapped to (-pi, pi])."""
+    R_enu_flu = frames.rotation_from_quaternion(np.asarray(q_enu_flu, dtype=float))
+    R_native = frames.D_FLIP @ R_enu_flu @ frames.D_FLIP
+    phi, theta, psi = frames.euler_from_rotation(R_native)
+    return VehicleState(
+        t=float(t),
+        p_native=frames.earth_enu_to_native(_vec3(p_enu)),
+        euler_native=np.array([phi, theta, psi]),
+        v_body_native=frames.body_flu_to_native(_vec3(v_flu)),
+        w_body_native=frames.body_flu_to_native(_vec3(w_flu)),
+    )
+
+
+def _diag6(variance: float) -> list[float]:
+    return list(np.diag(np.full(6, float(variance))).ravel())
+
+
+def state_to_odometry(state: VehicleState, *, frame_id: str = FRAME_ODOM,
+                      child_frame_id: str = FRAME_BASE_LINK,
+                      pose_variance: float | None = None, twist_variance: float | None = None):
+    """``nav_msgs/Odometry``: pose of ``base_link`` in ENU ``frame_id``, twist in ``base_link`` (FLU).
+
+    Covariances are diagonal with the nominal variances of ``sensors.yaml`` unless given.
+    """
+    from geometry_msgs.msg import Point, Pose, PoseWithCovariance, Quaternion, Twist, \
+        TwistWithCovariance, Vector3
+    from nav_msgs.msg import Odometry
+
+    model = sensor_model()["odometry"]
+    a = state_to_enu_arrays(state)
+    p, q, v, w = a["p_enu"], a["q_enu_flu"], a["v_flu"], a["w_flu"]
+    return Odometry(
+        header=_header(state.t, frame_id),
+        child_frame_id=child_frame_id,
+        pose=PoseWithCovariance(
+            pose=Pose(position=Point(x=p[0], y=p[1], z=p[2]),
+                      orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])),
+            covariance=_diag6(model["pose_variance"] if pose_variance is None else pose_variance)),
+        twist=TwistWithCovariance(
+            twist=Twist(linear=Vector3(x=v[0], y=v[1], z=v[2]), angular=Vector3(x=w[0], y=w[1], z=w[2])),
+            covariance=_diag6(model["twist_variance"] if twist_variance is None else twist_variance)),
+    )
+
+
+def odometry_to_state(msg) -> VehicleState:
+    """Inverse of :func:`state_to_odometry` (time from the header stamp)."""
+    if msg.child_frame_id not in (FRAME_BASE_LINK, ""):
+        raise ConversionError(f"odometry twist must be in {FRAME_BASE_LINK!r}, got {msg.child_frame_id!r}")
+    pp, qq = msg.pose.pose.position, msg.pose.pose.orientation
+    lv, av = msg.twist.twist.linear, msg.twist.twist.angular
+    return enu_arrays_to_state(stamp_to_seconds(msg.header.stamp), [pp.x, pp.y, pp.z],
+                               [qq.x, qq.y, qq.z, qq.w], [lv.x, lv.y, lv.z], [av.x, av.y, av.z])
+
+
+# ----------------------------------------------------------------------------------------- IMU
+def specific_force_flu(state: VehicleState, v_dot_body_native, g_m_s2: float) -> np.ndarray:
+    """Specific force at the CG in ``base_link`` (FLU), m/s^2, as an accelerometer measures it.
+
+    ``f = a - g``: the inertial acceleration of the CG ``a = dv/dt|_body + w x v`` (native body,
+    ``v_dot_body_native`` the body-frame derivative of (u, v, w)) minus gravity.  At rest and
+    level it is (0, 0, +g) in FLU (the gravity reaction).
+    """
+    phi, theta, psi = (float(x) for x in state.euler_native)
+    a_native = _vec3(v_dot_body_native) + np.cross(_vec3(state.w_body_native), _vec3(state.v_body_native))
+    g_body_native = frames.rotation_native(phi, theta, psi).T @ np.array([0.0, 0.0, -float(g_m_s2)])
+    return frames.body_native_to_flu(a_native - g_body_native)
+
+
+def imu_message(state: VehicleState, f_flu, *, frame_id: str = FRAME_BASE_LINK,
+                orientation_known: bool = True, variances: dict[str, float] | None = None):
+    """``sensor_msgs/Imu`` from the ROM state and the specific force ``f_flu`` (FLU, m/s^2).
+
+    Orientation is that of ``base_link`` in ENU.  With ``orientation_known=False`` the message
+    marks the orientation unknown as its definition says (``orientation_covariance[0] = -1``).
+    """
+    from geometry_msgs.msg import Quaternion, Vector3
+    from sensor_msgs.msg import Imu
+
+    model = dict(sensor_model()["imu"])
+    model.update(variances or {})
+    a = state_to_enu_arrays(state)
+    q, w, f = a["q_enu_flu"], a["w_flu"], _vec3(f_flu)
+    eye = np.eye(3).ravel()
+    if orientation_known:
+        q_cov = list(eye * model["orientation_variance_rad2"])
+    else:
+        q = np.array([0.0, 0.0, 0.0, 1.0])
+        q_cov = [-1.0] + [0.0] * 8
+    return Imu(
+        header=_header(state.t, frame_id),
+        orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]),
+        orientation_covariance=q_cov,
+        angular_velocity=Vector3(x=w[0], y=w[1], z=w[2]),
+        angular_velocity_covariance=list(eye * model["angular_velocity_variance_rad2_s2"]),
+        linear_acceleration=Vector3(x=f[0], y=f[1], z=f[2]),
+        linear_acceleration_covariance=list(eye * model["linear_acceleration_variance_m2_s4"]),
+    )
+
+
+def imu_to_arrays(msg) -> dict[str, Any]:
+    """``q_enu_flu`` (None when the message marks it unknown), ``w_flu``, ``f_flu``, ``t``."""
+    o, w, f = msg.orientation, msg.angular_velocity, msg.linear_acceleration
+    known = msg.orientation_covariance[0] != -1.0
+    return {"t": stamp_to_seconds(msg.header.stamp),
+            "q_enu_flu": np.array([o.x, o.y, o.z, o.w]) if known else None,
+            "w_flu": np.array([w.x, w.y, w.z]), "f_flu": np.array([f.x, f.y, f.z])}
+
+
+# ----------------------------------------------------------------------------------------- depth, altitude
+def depth_to_pressure(depth_m: float) -> float:
+    """Absolute pressure (Pa) at ``depth_m`` (positive down): ``p_atm + rho g depth``."""
+    w = sensor_model()["water"]
+    return w["p_atm_pa"] + w["rho_kg_m3"] * w["g_m_s2"] * float(depth_m)
+
+
+def pressure_to_depth(p_pa: float) -> float:
+    """Inverse of :func:`depth_to_pressure`."""
+    w = sensor_model()["water"]
+    return (float(p_pa) - w["p_atm_pa"]) / (w["rho_kg_m3"] * w["g_m_s2"])
+
+
+def depth_message(t: float, depth_m: float, *, frame_id: str = FRAME_BASE_LINK):
+    """``sensor_msgs/FluidPressure`` of the CG depth (m, positive down)."""
+    from sensor_msgs.msg import FluidPressure
+
+    if not math.isfinite(depth_m):
+        raise ConversionError(f"depth must be finite, got {depth_m!r}")
+    return FluidPressure(header=_header(t, frame_id), fluid_pressure=depth_to_pressure(depth_m),
+                         variance=float(sensor_model()["depth_sensor"]["variance_pa2"]))
+
+
+def depth_from_message(msg) -> float:
+    """Depth (m, positive down) of a ``sensor_msgs/FluidPressure``."""
+    return pressure_to_depth(msg.fluid_pressure)
+
+
+def altitude_message(t: float, altitude_m: float, *, frame_id: str = FRAME_BASE_LINK):
+    """``sensor_msgs/Range`` (float32 fields) of the altitude above the bottom.
+
+    An altitude beyond ``max_range`` (or non-finite, no bottom) is published as ``+inf``.
+    """
+    from sensor_msgs.msg import Range
+
+    m = sensor_model()["altimeter"]
+    r = float(altitude_m)
+    if not math.isfinite(r) or r > m["max_range_m"]:
+        r = math.inf
+    return Range(header=_header(t, frame_id), radiation_type=int(m["radiation_type"]),
+                 field_of_view=float(m["field_of_view_rad"]), min_range=float(m["min_range_m"]),
+                 max_range=float(m["max_range_m"]), range=r, variance=float(m["variance_m2"]))
+
+
+def altitude_from_message(msg) -> float:
+    """Altitude (m) of a ``sensor_msgs/Range`` (``inf`` = no bottom in range)."""
+    return float(msg.range)
+
+
+# ----------------------------------------------------------------------------------------- joints
+def _joint_state(t: float, names: Sequence[str], *, position=None, velocity=None,
+                 frame_id: str = FRAME_BASE_LINK):
+    from sensor_msgs.msg import JointState
+
+    msg = JointState(header=_header(t, frame_id), name=list(names))
+    if position is not None:
+        msg.position = [float(x) for x in position]
+    if velocity is not None:
+        msg.velocity = [float(x) for x in velocity]
+    return msg
+
+
+def _by_name(msg, names: Sequence[str], field: str) -> np.ndarray:
+    values = list(getattr(msg, field))
+    if len(values) != len(msg.name):
+        raise ConversionError(f"JointState has {len(msg.name)} names but {len(values)} {field} values")
+    index = {n: i for i, n in enumerate(msg.name)}
+    missing = [n for n in names if n not in index]
+    if missing:
+        raise ConversionError(f"JointState lacks joints {missing} (has {list(msg.name)})")
+    return np.array([values[index[n]] for n in names], dtype=float)
+
+
+def planes_message(t: float, delta_rad, *, velocity_rad_s=None, frame_id: str = FRAME_BASE_LINK):
+    """JointState of the five plane deflections ``delta1..delta5`` (rad), for state or command."""
+    d = np.asarray(delta_rad, dtype=float)
+    if d.shape != (len(PLANE_JOINTS),):
+        raise ConversionError(f"expected {len(PLANE_JOINTS)} plane deflections, got shape {d.shape}")
+    return _joint_state(t, PLANE_JOINTS, position=d, velocity=velocity_rad_s, frame_id=frame_id)
+
+
+def planes_from_message(msg) -> np.ndarray:
+    """Plane deflections (rad) in the order delta1..delta5, whatever the message's joint order."""
+    return _by_name(msg, PLANE_JOINTS, "position")
+
+
+def planes_message_deg(t: float, delta_deg, **kw):
+    """:func:`planes_message` from degrees (edge helper)."""
+    return planes_message(t, np.radians(np.asarray(delta_deg, dtype=float)), **kw)
+
+
+def planes_from_message_deg(msg) -> np.ndarray:
+    """:func:`planes_from_message` in degrees (edge helper)."""
+    return np.degrees(planes_from_message(msg))
+
+
+def propeller_message(t: float, omega_rad_s: float, *, frame_id: str = FRAME_BASE_LINK):
+    """JointState of the propeller shaft speed (rad/s), for state or command."""
+    return _joint_state(t, (PROPELLER_JOINT,), velocity=[omega_rad_s], frame_id=frame_id)
+
+
+def propeller_from_message(msg) -> float:
+    """Propeller shaft speed (rad/s)."""
+    return float(_by_name(msg, (PROPELLER_JOINT,), "velocity")[0])
+
+
+def vh_message(t: float, delta_v_rad: float, delta_h_rad: float, *, frame_id: str = FRAME_BASE_LINK):
+    """JointState of the autopilot's virtual plane commands (delta_V, delta_H), rad."""
+    return _joint_state(t, VH_JOINTS, position=[delta_v_rad, delta_h_rad], frame_id=frame_id)
+
+
+def vh_from_message(msg) -> tuple[float, float]:
+    """(delta_V, delta_H), rad."""
+    v = _by_name(msg, VH_JOINTS, "position")
+    return float(v[0]), float(v[1])
+
+
+# ----------------------------------------------------------------------------------------- guidance
+def rate_command_message(t: float, q_c_native: float, r_c_native: float):
+    """``geometry_msgs/Vector3Stamped`` of the rate commands as a FLU body rate (base_link).
+
+    The native (ROM) commands q_c (bow up > 0) and r_c (bow to port > 0) map to FLU as
+    ``(x, y, z) = (0, -q_c, r_c)``.
+    """
+    from geometry_msgs.msg import Vector3, Vector3Stamped
+
+    w = frames.body_native_to_flu(np.array([0.0, float(q_c_native), float(r_c_native)]))
+    return Vector3Stamped(header=_header(t, FRAME_BASE_LINK), vector=Vector3(x=w[0], y=w[1], z=w[2]))
+
+
+def rate_command_from_message(msg) -> tuple[float, float]:
+    """(q_c, r_c) native from a rate command; rejects a frame other than base_link."""
+    if msg.header.frame_id != FRAME_BASE_LINK:
+        raise ConversionError(f"rate command must be in {FRAME_BASE_LINK!r}, got {msg.header.frame_id!r}")
+    w = frames.body_flu_to_native(np.array([msg.vector.x, msg.vector.y, msg.vector.z]))
+    return float(w[1]), float(w[2])
+
+
+def path_error_message(t: float, e_path):
+    """``geometry_msgs/Vector3Stamped`` of the path error (m) in the path frame (x along, y left, z up)."""
+    from geometry_msgs.msg import Vector3, Vector3Stamped
+
+    e = _vec3(e_path)
+    return Vector3Stamped(header=_header(t, FRAME_PATH), vector=Vector3(x=e[0], y=e[1], z=e[2]))
+
+
+def path_error_from_message(msg) -> np.ndarray:
+    """Path error (m) in the path frame."""
+    return np.array([msg.vector.x, msg.vector.y, msg.vector.z])
+
+
+def path_message(t: float, p_native, *, frame_id: str = FRAME_MAP):
+    """``nav_msgs/Path`` of path samples ``p_native`` (N x 3, native earth) in ENU ``frame_id``.
+
+    Each pose's orientation points its x axis along the path tangent (finite differences, no roll).
+    """
+    from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion
+    from nav_msgs.msg import Path as PathMsg
+
+    p = np.asarray(p_native, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3 or len(p) < 2 or not np.all(np.isfinite(p)):
+        raise ConversionError(f"path must be N x 3 finite samples with N >= 2, got shape {p.shape}")
+    p_enu = frames.earth_native_to_enu(p)
+    tangent = np.gradient(p_enu, axis=0)
+    yaw = np.arctan2(tangent[:, 1], tangent[:, 0])
+    pitch = -np.arctan2(tangent[:, 2], np.hypot(tangent[:, 0], tangent[:, 1]))
+    header = _header(t, frame_id)
+    poses = []
+    for k in range(len(p_enu)):
+        cy, sy, cp, sp = np.cos(yaw[k] / 2), np.sin(yaw[k] / 2), np.cos(pitch[k] / 2), np.sin(pitch[k] / 2)
+        q = (-sy * sp, cy * sp, sy * cp, cy * cp)  # Rz(yaw) Ry(pitch), (x, y, z, w)
+        poses.append(PoseStamped(header=header, pose=Pose(
+            position=Point(x=p_enu[k, 0], y=p_enu[k, 1], z=p_enu[k, 2]),
+            orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]))))
+    return PathMsg(header=header, poses=poses)
+
+
+def path_from_message(msg) -> np.ndarray:
+    """Path samples (N x 3, native earth) of a ``nav_msgs/Path`` in ENU."""
+    if msg.header.frame_id != FRAME_MAP:
+        raise ConversionError(f"path must be in {FRAME_MAP!r}, got {msg.header.frame_id!r}")
+    p_enu = np.array([[ps.pose.position.x, ps.pose.position.y, ps.pose.position.z] for ps in msg.poses])
+    return frames.earth_enu_to_native(p_enu.reshape(-1, 3))
