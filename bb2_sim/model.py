@@ -51,7 +51,7 @@ class BB2Model:
 
     def __init__(self, surfaces=None, profile: "str | Profile" = "iowa", sea_state: float = 0,
                  params: RomParameters | None = None, tables: RomTables | None = None,
-                 trim_to_buoyancy: bool = False, strict_sea_state: bool = True):
+                 trim_to_buoyancy: bool | None = None, strict_sea_state: bool = True):
         from .geometry import load_hull  # trimesh only when a model is built
 
         self.params = params or load_parameters()
@@ -64,7 +64,11 @@ class BB2Model:
         self.volume = self.hydro.volume()
         self.buoyancy_mass = self.params.rho * self.volume
         # The paper trims the weight to the integrated buoyancy. The authors' Mb equals rho V of their
-        # surfaces to 0.05 kg; for any other surface set the weight is trimmed at start.
+        # surfaces to 0.05 kg and is kept as it is (None = auto: trim unless within the data's tolerance);
+        # any other surface set (the generated hull: -53 kg) is trimmed at start.
+        if trim_to_buoyancy is None:
+            trim_to_buoyancy = abs(self.buoyancy_mass - self.params.Mb) > self.params.trim_tolerance_kg
+        self.trimmed = bool(trim_to_buoyancy)
         self.Mb = self.buoyancy_mass if trim_to_buoyancy else self.params.Mb
         p = self.params
         self._h = p.h

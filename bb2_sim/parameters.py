@@ -24,6 +24,7 @@ class RomParameters:
     h: float                   # s, fixed step of the reference solver
     Xcg_stl: np.ndarray        # (3,) m: body origin in scaled STL coordinates
     Mb: float                  # kg
+    trim_tolerance_kg: float   # kg: |rho V - Mb| below which the data's Mb is kept (no re-trim)
     inertia: np.ndarray        # (3,) Ixx, Iyy, Izz kg m^2
     cg_offset: np.ndarray      # (3,) m (zero: the origin is the CG)
     plane_points_body: np.ndarray   # (5, 3) m
@@ -73,6 +74,7 @@ def load_parameters(path: str | None = None) -> RomParameters:
     return RomParameters(
         rho=float(d["rho_kg_m3"]), g=float(d["g_m_s2"]), L=float(d["L_m"]), h=float(d["time_step_s"]),
         Xcg_stl=xcg, Mb=float(d["mass"]["Mb_kg"]),
+        trim_tolerance_kg=float(d["mass"]["trim_tolerance_kg"]),
         inertia=np.array([d["mass"]["Ixx_kg_m2"], d["mass"]["Iyy_kg_m2"], d["mass"]["Izz_kg_m2"]]),
         cg_offset=np.array(d["mass"]["cg_offset_m"], dtype=float),
         plane_points_body=np.array(planes["points_body_m"], dtype=float),

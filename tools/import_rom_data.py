@@ -82,7 +82,10 @@ def main() -> None:
         "time_step_s": const["time_step_s"],
         "mass": {"Mb_kg": mass["mass_Mb_kg"], "Ixx_kg_m2": mass["Ixx_kg_m2"], "Iyy_kg_m2": mass["Iyy_kg_m2"],
                  "Izz_kg_m2": mass["Izz_kg_m2"], "cg_offset_m": mass["CG_offset_Xg_Yg_Zg_m"],
-                 "note": "added mass is not in the rigid-body mass matrix; it enters as a force"},
+                 "note": "added mass is not in the rigid-body mass matrix; it enters as a force",
+                 "trim_tolerance_kg": 1.0,
+                 "trim_note": "the weight is trimmed to rho V of the surface set at start unless |rho V - Mb| <= "
+                              "this tolerance (the authors' surfaces: 0.05 kg, kept as published)"},
         "planes": {
             "points_body_m": [geo["planes"][str(i)]["position_m"] for i in range(1, 6)],
             "span_unit_vectors_body": [geo["planes"][str(i)]["span_unit_vector"] for i in range(1, 6)],

@@ -1,0 +1,265 @@
+"""Standard maneuvers of the BB2 ROM: settings (data), the maneuver logic, and the runner.
+
+A maneuver is a set of defaults in ``data/maneuvers.yaml`` plus the channel logic below: the vertical
+channel is flown by the authors' depth/pitch PID, a zig-zag, or imposed; the horizontal channel by the
+heading PD, a zig-zag, a constant rudder, or imposed. Commands go through the X-plane mixer
+(:class:`bb2_control.mixer.PlaneMixer`, dV = dv > 0 bow up, dH = dh > 0 bow to port) and then the ROM's
+actuators. The run is logged every ``log_every`` steps with the columns of the reference CSVs.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field, fields, replace
+from functools import lru_cache
+from pathlib import Path
+from typing import Callable, Iterable
+
+import numpy as np
+import yaml
+
+from .autopilot_v12 import V12Autopilot, autopilot_v12_gains
+from .integrator import NonFiniteStateError, Simulator, StepRecord
+from .model import BB2Model
+
+DATA = Path(__file__).resolve().parent / "data" / "maneuvers.yaml"
+RAD2DEG = 180.0 / math.pi
+
+CSV_COLUMNS = [
+    "t_s", "x_m", "y_m", "z_m", "phi_deg", "theta_deg", "psi_deg", "u_m_s", "v_m_s", "w_m_s",
+    "p_deg_s", "q_deg_s", "r_deg_s", "U_m_s",
+    "dX1_deg", "dX2_deg", "dX3_deg", "dX4_deg", "dX5_deg",
+    "cmd_dX1_deg", "cmd_dX2_deg", "cmd_dX3_deg", "cmd_dX4_deg", "cmd_dX5_deg",
+    "n_rps", "J", "KT", "KQ", "thrust_N", "thrust_deduction", "thrust_net_N", "torque_Nm", "dmass_kg",
+]
+"""Columns of the maneuver CSV: those of the authors' reference runs (native frames, see REFERENCE.md)."""
+
+
+class ManeuverError(ValueError):
+    """Bad maneuver name or settings."""
+
+
+@lru_cache(maxsize=1)
+def _catalogue() -> dict:
+    return yaml.safe_load(DATA.read_text())["maneuvers"]
+
+
+def maneuver_names() -> list[str]:
+    return list(_catalogue())
+
+
+@dataclass(frozen=True)
+class ManeuverSettings:
+    """Everything that defines a maneuver run (user units: depth m positive down, speed m/s ahead, deg, s)."""
+
+    name: str
+    depth: float
+    speed_mps: float
+    duration: float
+    vertical: str
+    horizontal: str
+    depth_ref: float | None = None
+    heading_ref_deg: float = 0.0
+    rps: float | None = None
+    sea_state: float = 0
+    rudder_deg: float = 0.0
+    amplitude_deg: float = 0.0
+    check_deg: float = 0.0
+    sail_planes: str = "zero"
+    planes_deg: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    profile: str = "iowa"
+    doc: str = ""
+
+    @property
+    def rps_command(self) -> float:
+        """Propeller command: the given rps, else the authors' rule n = U/4."""
+        if self.rps is not None:
+            return float(self.rps)
+        return self.speed_mps * float(autopilot_v12_gains()["rps_per_speed"])
+
+    @property
+    def z_ref(self) -> float:
+        return -(self.depth if self.depth_ref is None else self.depth_ref)
+
+    def initial_state(self) -> np.ndarray:
+        """[x y z phi theta psi u v w p q r] native: at the given depth, moving ahead at the given speed."""
+        x0 = np.zeros(12)
+        x0[2] = -self.depth
+        x0[6] = -self.speed_mps
+        return x0
+
+
+def maneuver_settings(name: str, **overrides) -> ManeuverSettings:
+    """Defaults of maneuver ``name`` with user overrides (None values are ignored); validated."""
+    cat = _catalogue()
+    if name not in cat:
+        raise ManeuverError(f"unknown maneuver {name!r} (choose from {', '.join(cat)})")
+    d = dict(cat[name])
+    d.update({k: v for k, v in overrides.items() if v is not None})
+    known = {f.name for f in fields(ManeuverSettings)}
+    bad = set(d) - known
+    if bad:
+        raise ManeuverError(f"unknown maneuver setting(s): {sorted(bad)}")
+    if "planes_deg" in d:
+        d["planes_deg"] = tuple(float(v) for v in d["planes_deg"])
+    s = ManeuverSettings(name=name, **d)
+    validate(s)
+    return s
+
+
+def validate(s: ManeuverSettings) -> None:
+    """Raise :class:`ManeuverError` with one clear message for any bad setting."""
+    numeric = {"depth": s.depth, "speed_mps": s.speed_mps, "duration": s.duration,
+               "heading_ref_deg": s.heading_ref_deg, "sea_state": s.sea_state, "rudder_deg": s.rudder_deg,
+               "amplitude_deg": s.amplitude_deg, "check_deg": s.check_deg}
+    if s.depth_ref is not None:
+        numeric["depth_ref"] = s.depth_ref
+    if s.rps is not None:
+        numeric["rps"] = s.rps
+    for k, v in numeric.items():
+        if not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ManeuverError(f"{k} must be a finite number, got {v!r}")
+    if len(s.planes_deg) != 5:
+        raise ManeuverError(f"--planes-deg needs exactly 5 angles d1,d2,d3,d4,d5 (got {len(s.planes_deg)})")
+    if not all(math.isfinite(v) for v in s.planes_deg):
+        raise ManeuverError(f"plane angles must be finite, got {list(s.planes_deg)}")
+    if s.duration <= 0:
+        raise ManeuverError(f"duration must be positive, got {s.duration}")
+    if s.rps is not None and s.rps < 0:
+        raise ManeuverError(f"rps must be >= 0, got {s.rps}")
+    if s.vertical not in ("pid", "zigzag", "imposed") or s.horizontal not in ("pd", "zigzag", "rudder", "imposed"):
+        raise ManeuverError(f"unknown channel logic vertical={s.vertical!r} horizontal={s.horizontal!r}")
+    if s.sail_planes not in ("zero", "pid"):
+        raise ManeuverError(f"sail planes must be 'pid' or 'zero', got {s.sail_planes!r}")
+    if "zigzag" in (s.vertical, s.horizontal) and (s.amplitude_deg <= 0 or s.check_deg <= 0):
+        raise ManeuverError("zig-zags need --amplitude-deg > 0 and --check-deg > 0")
+
+
+class ZigZag:
+    """Zig-zag command +-A switched at the first major step where the monitored angle reaches +-C."""
+
+    def __init__(self, amplitude_deg: float, check_deg: float):
+        self.A, self.C = float(amplitude_deg), float(check_deg)
+        self.sign = 1.0
+        self.reversals: list[float] = []
+
+    def step(self, t: float, angle_deg: float) -> float:
+        if self.sign > 0 and angle_deg >= self.C:
+            self.sign = -1.0
+            self.reversals.append(t)
+        elif self.sign < 0 and angle_deg <= -self.C:
+            self.sign = 1.0
+            self.reversals.append(t)
+        return self.sign * self.A
+
+
+class ManeuverCommander:
+    """Per major step: state -> five plane commands (deg, authors' plane signs) and the rps command."""
+
+    def __init__(self, s: ManeuverSettings):
+        from bb2_control.mixer import PlaneMixer
+
+        self.s = s
+        self.autopilot = V12Autopilot(z_ref=s.z_ref, psi_ref=math.radians(s.heading_ref_deg))
+        self.mixer = PlaneMixer.from_config()
+        self.zigzag = ZigZag(s.amplitude_deg, s.check_deg) if "zigzag" in (s.vertical, s.horizontal) else None
+
+    def step(self, t: float, x: np.ndarray) -> tuple[np.ndarray, float]:
+        s = self.s
+        rps = s.rps_command
+        if s.vertical == "imposed" and s.horizontal == "imposed":
+            return np.array(s.planes_deg, dtype=float), rps
+        dv_pid, dh_pd = self.autopilot.step(x[2], x[4], x[5])
+        dv, dh = dv_pid, dh_pd
+        if s.vertical == "zigzag":
+            dv = self.zigzag.step(t, x[4] * RAD2DEG)
+        if s.horizontal == "zigzag":
+            dh = self.zigzag.step(t, x[5] * RAD2DEG)
+        elif s.horizontal == "rudder":
+            dh = -s.rudder_deg
+        planes = self.mixer.step(dv, dh)
+        if s.vertical == "zigzag":
+            planes[4] = dv_pid if s.sail_planes == "pid" else 0.0
+        return planes, rps
+
+
+def record_row(rec: StepRecord, model: BB2Model) -> list[float]:
+    """One CSV row (CSV_COLUMNS) from a major-step record."""
+    x = rec.x
+    P = model.params
+    prop = rec.ev.prop
+    n = rec.act.rps
+    thrust_ow = prop.KT * P.rho * n * n * P.prop_D ** 4
+    return [rec.t, x[0], x[1], x[2], x[3] * RAD2DEG, x[4] * RAD2DEG, x[5] * RAD2DEG, x[6], x[7], x[8],
+            x[9] * RAD2DEG, x[10] * RAD2DEG, x[11] * RAD2DEG, math.sqrt(x[6] ** 2 + x[7] ** 2 + x[8] ** 2),
+            *rec.act.planes_deg, *rec.commands_planes_deg, n, prop.J, prop.KT, prop.KQ, thrust_ow, prop.t,
+            (1.0 - prop.t) * thrust_ow, prop.torque, rec.act.dmass_kg]
+
+
+@dataclass
+class ManeuverResult:
+    settings: ManeuverSettings
+    traj: dict[str, np.ndarray]
+    error: NonFiniteStateError | None = None
+    reversals: list[float] = field(default_factory=list)
+    wall_time_s: float = 0.0
+
+    @property
+    def completed(self) -> bool:
+        return self.error is None
+
+
+class CsvWriter:
+    """Writes CSV rows as they come (flushed), so a diverged or interrupted run keeps what it had."""
+
+    def __init__(self, path: str | Path, columns: list[str] = CSV_COLUMNS):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh = open(self.path, "w", newline="")
+        self._w = csv.writer(self._fh)
+        self._w.writerow(columns)
+
+    def write(self, row: Iterable[float]) -> None:
+        self._w.writerow([f"{v:.12g}" for v in row])
+        self._fh.flush()
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+def build_model(s: ManeuverSettings, hull_mesh: str | None = None, trim_to_buoyancy: bool | None = None) -> BB2Model:
+    return BB2Model(hull_mesh, profile=s.profile, sea_state=s.sea_state, trim_to_buoyancy=trim_to_buoyancy)
+
+
+def run_maneuver(s: ManeuverSettings, model: BB2Model | None = None, *, hull_mesh: str | None = None,
+                 log_every: int = 2, on_row: Callable[[list[float]], None] | None = None,
+                 progress: Callable[[float], None] | None = None) -> ManeuverResult:
+    """Fly maneuver ``s``; log every ``log_every`` steps (0.1 s). Stops at the first non-finite state."""
+    import time
+
+    model = model or build_model(s, hull_mesh)
+    sim = Simulator(model, s.initial_state())
+    cmd = ManeuverCommander(s)
+    n_steps = int(round(s.duration / sim.h))
+    rows: list[list[float]] = []
+    err = None
+    t0 = time.perf_counter()
+    for k in range(n_steps + 1):
+        x = sim.x
+        planes, rps = cmd.step(sim.t, x)
+        try:
+            rec = sim.step(planes, rps)
+        except NonFiniteStateError as e:
+            err = e
+            break
+        if k % log_every == 0:
+            row = record_row(rec, model)
+            rows.append(row)
+            if on_row:
+                on_row(row)
+        if progress and k % 200 == 0:
+            progress(rec.t)
+    arr = np.array(rows) if rows else np.zeros((0, len(CSV_COLUMNS)))
+    traj = {c: arr[:, i] for i, c in enumerate(CSV_COLUMNS)}
+    reversals = cmd.zigzag.reversals if cmd.zigzag else []
+    return ManeuverResult(s, traj, err, list(reversals), time.perf_counter() - t0)
