@@ -382,12 +382,21 @@ class BernsteinPath:
     def at(self, t: float) -> PathPoint:
         """All path quantities at one time ``t`` (the call the path-following law makes each tick)."""
         t = float(np.clip(t, self.t0, self.tf))
-        v, a = self.velocity(t), self.acceleration(t)
+        tau = self.tau(t)
+        v = de_casteljau(self.derivative(1).control_points, tau)
+        a = de_casteljau(self.derivative(2).control_points, tau)
         s = float(np.linalg.norm(v))
-        return PathPoint(t=t, p=self(t), dp=v, ddp=a, speed=s,
+        cross2 = max(float(v @ v) * float(a @ a) - float(v @ a) ** 2, 0.0)
+        kappa = np.sqrt(cross2) / s ** 3 if s > 0 else np.nan
+        torsion = 0.0
+        if self.dim == 3:
+            c = np.cross(v, a)
+            cc = float(c @ c)
+            if cc > s ** 6 * 1e-20 + 1e-300:
+                torsion = float(c @ de_casteljau(self.derivative(3).control_points, tau)) / cc
+        return PathPoint(t=t, p=de_casteljau(self.control_points, tau), dp=v, ddp=a, speed=s,
                          tangent=v / s if s > 0 else np.full_like(v, np.nan),
-                         curvature=float(self.curvature(t)),
-                         torsion=float(self.torsion(t)) if self.dim == 3 else 0.0)
+                         curvature=float(kappa), torsion=torsion)
 
     # ------------------------------------------------------------------ integrals
     def integral(self) -> np.ndarray:
