@@ -6,12 +6,13 @@ added mass acts as an explicit force with a one-step lag, exactly as the authors
 from __future__ import annotations
 
 import numpy as np
+from .frames import cross
 
 
 def section_relative_velocity(V: np.ndarray, omega: np.ndarray, uw_sections: np.ndarray,
                               r_sections: np.ndarray) -> np.ndarray:
     """urel_i = uw_i - (V + omega x r_i), (15, 3), native body axes (m/s)."""
-    return uw_sections - (V + np.cross(omega, r_sections))
+    return uw_sections - (V + cross(omega, r_sections))
 
 
 class DerivativeMemory:

@@ -62,6 +62,17 @@ def euler_from_rotation(R: np.ndarray) -> tuple[float, float, float]:
 
 
 # ----------------------------------------------------------------------------------------- vectors
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b for 3-vectors or stacks of them (..., 3); np.cross without its per-call overhead."""
+    if a.ndim == 1 and b.ndim == 1:
+        a0, a1, a2 = a
+        b0, b1, b2 = b
+        return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+
+
 def body_native_to_flu(v_native: np.ndarray) -> np.ndarray:
     """Body vector (velocity, rate, force, moment) native (x aft, y stbd, z up) -> FLU."""
     return np.asarray(v_native, dtype=float) @ D_FLIP.T

@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from .parameters import RomParameters
+from .frames import cross
 from .tables import RomTables
 
 RAD2DEG = 180.0 / math.pi
@@ -23,7 +24,7 @@ def plane_flow(V: np.ndarray, omega: np.ndarray, uw_planes: np.ndarray, params: 
     ``guard`` (zero-speed guard, quirk Q13): at zero relative speed the incidence is 0 instead of NaN.
     """
     r = params.plane_points_body
-    ur = -(V + np.cross(omega, r)) + uw_planes               # (5, 3)
+    ur = -(V + cross(omega, r)) + uw_planes               # (5, 3)
     UeX = np.sqrt(np.einsum("ij,ij->i", ur, ur))
     nh = params.hull_axis_body
     n = params.plane_spans_body

@@ -34,6 +34,67 @@ def _segment(bp: Sequence[float], x: float) -> tuple[int, float]:
     return i, (x - x0) / (bp[i + 1] - x0)
 
 
+def _axis_fn(bp: Sequence[float], clamp):
+    """x -> (segment, fraction) for one axis, with the axis clamp and the end segments folded in."""
+    bp = list(bp)
+    n2 = len(bp) - 2
+    lo, hi = clamp if clamp is not None else (None, None)
+
+    def seg(x: float, bp=bp, n2=n2, lo=lo, hi=hi, bisect=bisect_right):
+        if lo is not None:
+            x = lo if x < lo else (hi if x > hi else x)
+        i = bisect(bp, x) - 1
+        if i < 0:
+            i = 0
+        elif i > n2:
+            i = n2
+        x0 = bp[i]
+        return i, (x - x0) / (bp[i + 1] - x0)
+
+    return seg
+
+
+def _compile(t: "LookupTable"):
+    """A specialised scalar lookup function for table t (1-, 2- or 3-D)."""
+    v, gain = t.values, t.gain
+    segs = [_axis_fn(b, c) for b, c in zip(t.breakpoints, t.clamps)]
+    if len(segs) == 1:
+        s0, = segs
+
+        def f1(x0):
+            i, f = s0(x0)
+            return gain * (v[i] + f * (v[i + 1] - v[i]))
+        return f1
+    if len(segs) == 2:
+        s0, s1 = segs
+
+        def f2(x0, x1):
+            i, f = s0(x0)
+            j, g = s1(x1)
+            a, b = v[i], v[i + 1]
+            y0 = a[j] + g * (a[j + 1] - a[j])
+            y1 = b[j] + g * (b[j + 1] - b[j])
+            return gain * (y0 + f * (y1 - y0))
+        return f2
+    if len(segs) == 3:
+        s0, s1, s2 = segs
+
+        def f3(x0, x1, x2):
+            i, f = s0(x0)
+            j, g = s1(x1)
+            k, h = s2(x2)
+            a0, a1, b0, b1 = v[i][j], v[i][j + 1], v[i + 1][j], v[i + 1][j + 1]
+            c00 = a0[k] + h * (a0[k + 1] - a0[k])
+            c01 = a1[k] + h * (a1[k + 1] - a1[k])
+            c10 = b0[k] + h * (b0[k + 1] - b0[k])
+            c11 = b1[k] + h * (b1[k + 1] - b1[k])
+            c0 = c00 + g * (c01 - c00)
+            c1 = c10 + g * (c11 - c10)
+            return gain * (c0 + f * (c1 - c0))
+        return f3
+    raise ValueError(f"table {t.name}: {len(segs)}-D lookups are not supported")
+
+
 @dataclass
 class LookupTable:
     """One n-D table (n = 1..3): ``gain * table(clamp(inputs))``."""
@@ -63,42 +124,12 @@ class LookupTable:
     def ndim(self) -> int:
         return len(self.breakpoints)
 
-    def _clamp(self, k: int, x: float) -> float:
-        c = self.clamps[k]
-        if c is None:
-            return x
-        lo, hi = c
-        return lo if x < lo else (hi if x > hi else x)
+    def __post_init__(self) -> None:
+        self._fn = _compile(self)
 
     def __call__(self, *x: float) -> float:
         """Scalar lookup (inputs in axis order, raw; clamps applied here), times the gain."""
-        nd = len(self.breakpoints)
-        v = self.values
-        if nd == 1:
-            i, f = _segment(self.breakpoints[0], self._clamp(0, x[0]))
-            y = v[i] + f * (v[i + 1] - v[i])
-        elif nd == 2:
-            i, f = _segment(self.breakpoints[0], self._clamp(0, x[0]))
-            j, g = _segment(self.breakpoints[1], self._clamp(1, x[1]))
-            a, b = v[i], v[i + 1]
-            y0 = a[j] + g * (a[j + 1] - a[j])
-            y1 = b[j] + g * (b[j + 1] - b[j])
-            y = y0 + f * (y1 - y0)
-        elif nd == 3:
-            i, f = _segment(self.breakpoints[0], self._clamp(0, x[0]))
-            j, g = _segment(self.breakpoints[1], self._clamp(1, x[1]))
-            k, h = _segment(self.breakpoints[2], self._clamp(2, x[2]))
-            a0, a1, b0, b1 = v[i][j], v[i][j + 1], v[i + 1][j], v[i + 1][j + 1]
-            c00 = a0[k] + h * (a0[k + 1] - a0[k])
-            c01 = a1[k] + h * (a1[k + 1] - a1[k])
-            c10 = b0[k] + h * (b0[k + 1] - b0[k])
-            c11 = b1[k] + h * (b1[k + 1] - b1[k])
-            c0 = c00 + g * (c01 - c00)
-            c1 = c10 + g * (c11 - c10)
-            y = c0 + f * (c1 - c0)
-        else:  # pragma: no cover - no such table in the model
-            raise ValueError(f"table {self.name}: {nd}-D lookups are not supported")
-        return self.gain * y
+        return self._fn(*x)
 
     def evaluate_array(self, *x: np.ndarray) -> np.ndarray:
         """Vectorised lookup over broadcast input arrays (same semantics as the scalar call)."""
