@@ -1,0 +1,356 @@
+"""Named guidance-and-control stacks composed from the pieces of bb2_control (SPEC 0 and 7).
+
+``build_stack(name_or_config, path=None, overrides=None)`` returns a stack with ``reset()`` and
+``step(state) -> ControlOutput``, to be called once every Ts = 0.05 s at the ROM's major steps (the
+ROM holds the commands during its ode3 stages).  Stacks (``data/stacks.yaml``):
+
+* ``rate_2022`` (default): 3-D SO(3) path following -> body-rate conversion -> rate L1 ->
+  proportional rate autopilot -> X-plane mixer; constant propeller rps.
+* ``los_2023``: 2-D LOS heading + path depth -> depth/heading L1 -> depth/pitch/yaw PD -> mixer.
+
+Each piece keeps its own small ``step()`` so that separate processes can run them:
+guidance (:class:`~bb2_control.path_following.PathFollowing3D` or
+:class:`~bb2_control.los.LineOfSightDepth`), inner loop (:class:`RateInnerLoop` or
+:class:`DepthHeadingInnerLoop`: L1 + autopilot) and :class:`~bb2_control.mixer.PlaneMixer`.
+
+Non-finite vehicle states: ``nan_policy: raise`` (default) raises NonFiniteInputError before any state
+changes; ``hold`` returns the previous output again (flagged ``held``) without changing any state, and
+raises if there is no previous output.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from bb2_control.autopilots import DepthHeadingPD, RateAutopilot
+from bb2_control.config import deep_merge, load_data, load_mapping, require
+from bb2_control.errors import ControlConfigError, NonFiniteInputError, UnknownStackError
+from bb2_control.l1_adaptive import L1Augmentation
+from bb2_control.los import LineOfSightDepth, LOSGains
+from bb2_control.mixer import PlaneMixer
+from bb2_control.path_following import PathFollowing3D, PFGains, flow_to_body_rates
+from bb2_sim import frames
+from bb2_sim.state import VehicleState
+
+__all__ = [
+    "ControlOutput", "SpeedCommand", "RateInnerLoop", "DepthHeadingInnerLoop", "Stack",
+    "RatePathFollowingStack", "LosDepthHeadingStack", "available_stacks", "resolve_config", "build_stack",
+]
+
+_SECTION_FILES = {"guidance": "guidance", "l1": "l1_configs", "autopilot": "autopilots", "mixer": "mixer"}
+
+
+@dataclass(frozen=True)
+class ControlOutput:
+    """Everything one stack tick produces (commands and logging).  NaN marks quantities a stack lacks."""
+
+    t: float                   #: state time, s
+    q_c: float                 #: PF rate command about w2 (bow-down positive), rad/s (NaN for LOS)
+    r_c: float                 #: PF rate command about w3 (bow-to-port positive), rad/s (NaN for LOS)
+    q_up_ref: float            #: bow-up body-rate reference into the inner loop, rad/s (NaN for LOS)
+    r_left_ref: float          #: bow-to-port body-rate reference, rad/s (NaN for LOS)
+    z_ref: float               #: depth reference (z up), m (NaN for the rate stack)
+    psi_ref: float             #: heading reference (continuous, bow CCW from x of the stack frame), rad
+    u_ad: Mapping[str, float]  #: L1 outputs (= references when adaptation is off)
+    dV_deg: float              #: vertical command, deg (> 0 bow-up moment)
+    dH_deg: float              #: horizontal command, deg (> 0 bow-to-port moment)
+    planes_deg: np.ndarray     #: delta_1..delta_5, deg (ROM per-plane convention)
+    rps: float                 #: propeller command, rev/s
+    gamma: float               #: virtual time, s
+    gamma_dot: float
+    p_d_native: np.ndarray     #: desired position, native earth frame, m
+    e_horizontal_m: float      #: horizontal path error (> 0: vehicle left of the path), m
+    e_vertical_m: float        #: vertical path error (> 0: vehicle above the path), m
+    finished: bool             #: gamma reached the end of the path
+    held: bool = False         #: True when this is a repeated output (nan_policy: hold)
+
+
+@dataclass
+class SpeedCommand:
+    """Constant feed-forward propeller command n = |v_ref| / advance, clipped to [n_min, n_max] (SPEC 4.3)."""
+
+    v_ref_mps: float
+    advance_m_per_rev: float = 4.0
+    n_min_rps: float = 0.01
+    n_max_rps: float = 10.0
+
+    def __post_init__(self) -> None:
+        if not (self.advance_m_per_rev > 0 and self.n_max_rps >= self.n_min_rps and math.isfinite(self.v_ref_mps)):
+            raise ControlConfigError(f"speed command: invalid settings {self}")
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any]) -> "SpeedCommand":
+        mode = cfg.get("mode", "constant_feedforward")
+        if mode != "constant_feedforward":
+            raise ControlConfigError(f"speed command: unknown mode {mode!r} (only 'constant_feedforward')")
+        return cls(float(require(cfg, "v_ref_mps", "speed")), float(cfg.get("advance_m_per_rev", 4.0)),
+                   float(cfg.get("n_min_rps", 0.01)), float(cfg.get("n_max_rps", 10.0)))
+
+    def reset(self) -> None:
+        """Stateless."""
+
+    def step(self) -> float:
+        return float(np.clip(abs(self.v_ref_mps) / self.advance_m_per_rev, self.n_min_rps, self.n_max_rps))
+
+
+class RateInnerLoop:
+    """Rate L1 + proportional rate autopilot: body-rate references and measured rates -> (dV, dH) deg."""
+
+    def __init__(self, l1: L1Augmentation, autopilot: RateAutopilot) -> None:
+        if set(l1.channels) != {"q", "r"}:
+            raise ControlConfigError(f"rate inner loop needs L1 channels 'q' and 'r', got {sorted(l1.channels)}")
+        self.l1, self.autopilot = l1, autopilot
+
+    def reset(self) -> None:
+        self.l1.reset()
+        self.autopilot.reset()
+
+    def step(self, q_up_ref: float, r_left_ref: float, q_up: float, r_left: float
+             ) -> tuple[float, float, dict[str, float]]:
+        """(dV, dH, u_ad) from bow-up / bow-to-port rate references and measurements (rad/s)."""
+        vals = dict(q_up_ref=q_up_ref, r_left_ref=r_left_ref, q_up=q_up, r_left=r_left)
+        if not all(math.isfinite(float(v)) for v in vals.values()):
+            raise NonFiniteInputError(f"rate inner loop: non-finite input {vals}")
+        u = self.l1.step({"q": q_up_ref, "r": r_left_ref}, {"q": q_up, "r": r_left})
+        dV, dH = self.autopilot.step(u["q"], u["r"], q_up, r_left)
+        return dV, dH, u
+
+
+class DepthHeadingInnerLoop:
+    """Depth/heading L1 + depth/pitch/yaw PD: references and measurements -> (dV, dH) deg."""
+
+    def __init__(self, l1: L1Augmentation, autopilot: DepthHeadingPD) -> None:
+        if set(l1.channels) != {"depth", "heading"}:
+            raise ControlConfigError(
+                f"depth/heading inner loop needs L1 channels 'depth' and 'heading', got {sorted(l1.channels)}")
+        self.l1, self.autopilot = l1, autopilot
+
+    def reset(self) -> None:
+        self.l1.reset()
+        self.autopilot.reset()
+
+    def step(self, z_ref: float, psi_ref: float, z: float, theta: float, psi: float
+             ) -> tuple[float, float, dict[str, float]]:
+        """(dV, dH, u_ad); z up (m), angles rad, psi and psi_ref continuous in the same frame."""
+        vals = dict(z_ref=z_ref, psi_ref=psi_ref, z=z, theta=theta, psi=psi)
+        if not all(math.isfinite(float(v)) for v in vals.values()):
+            raise NonFiniteInputError(f"depth/heading inner loop: non-finite input {vals}")
+        u = self.l1.step({"depth": z_ref, "heading": psi_ref}, {"depth": z, "heading": psi})
+        dV, dH = self.autopilot.step(u["depth"], z, theta, u["heading"], psi)
+        return dV, dH, u
+
+
+# ------------------------------------------------------------------------------------------ stacks
+class Stack:
+    """Base: frame handling, NaN policy and the shared pieces (mixer, speed)."""
+
+    def __init__(self, name: str, config: Mapping[str, Any], path: Any) -> None:
+        self.name = name
+        self.config = dict(config)
+        self.Ts = float(require(config, "Ts_s", f"stack {name}"))
+        self.nan_policy = config.get("nan_policy", "raise")
+        if self.nan_policy not in ("raise", "hold"):
+            raise ControlConfigError(f"stack {name}: nan_policy must be 'raise' or 'hold', got {self.nan_policy!r}")
+        frame = config.get("frame", "native")
+        from bb2_planner.bernstein import frame_matrix_to_native  # control may use planner types
+
+        M = np.asarray(frame_matrix_to_native(frame), dtype=float)
+        if not (np.isclose(np.linalg.det(M), 1.0) and np.allclose(M[:, 2], [0, 0, 1]) and np.allclose(M[2], [0, 0, 1])):
+            raise ControlConfigError(f"stack {name}: frame {frame!r} is not a z-up rotation of the native frame")
+        self.frame = frame
+        self._M = M                        # p_native = M p_frame
+        bow = M.T @ np.array([-1.0, 0.0, 0.0])
+        self._heading_offset = math.atan2(bow[1], bow[0])   # heading_frame = psi_native + offset
+        self.path = path.to_frame(frame) if getattr(path, "frame", frame) != frame else path
+        self.mixer = PlaneMixer.from_config(deep_merge(load_data("mixer"), config.get("mixer") or {}))
+        self.speed = SpeedCommand.from_config(require(config, "speed", f"stack {name}"))
+        self._last: ControlOutput | None = None
+
+    def reset(self) -> None:
+        self.mixer.reset()
+        self.speed.reset()
+        self._last = None
+
+    # -- inputs in the stack frame
+    def _inputs(self, s: VehicleState) -> dict[str, Any]:
+        phi, theta, psi = (float(x) for x in s.euler_native)
+        R_BI_native = frames.rotation_native(phi, theta, psi) @ frames.D_FLIP
+        return dict(p=self._M.T @ np.asarray(s.p_native, float), R_BI=self._M.T @ R_BI_native,
+                    v_flu=frames.body_native_to_flu(s.v_body_native), q_up=float(s.w_body_native[1]),
+                    r_left=float(s.w_body_native[2]), theta=theta, heading=psi + self._heading_offset)
+
+    def step(self, state: VehicleState) -> ControlOutput:
+        """One control tick for the vehicle state (native frames); call every Ts."""
+        if not np.all(np.isfinite(state.as_vector())) or not math.isfinite(state.t):
+            if self.nan_policy == "hold" and self._last is not None:
+                return replace(self._last, held=True)
+            raise NonFiniteInputError(
+                f"stack {self.name}: non-finite vehicle state at t={state.t}: {state.as_vector()}"
+                + (" (nan_policy 'hold' has no previous output yet)" if self.nan_policy == "hold" else ""))
+        out = self._step(state, self._inputs(state))
+        self._last = out
+        return out
+
+    def _step(self, state: VehicleState, x: dict[str, Any]) -> ControlOutput:  # pragma: no cover
+        raise NotImplementedError
+
+    @property
+    def finished(self) -> bool:
+        return self.guidance.finished
+
+    @property
+    def adaptation(self) -> bool:
+        return self.inner.l1.adaptive
+
+    @adaptation.setter
+    def adaptation(self, on: bool) -> None:
+        self.inner.l1.adaptive = on
+
+
+class RatePathFollowingStack(Stack):
+    """``rate_2022``: PathFollowing3D -> flow_to_body_rates -> RateInnerLoop -> PlaneMixer."""
+
+    def __init__(self, name: str, config: Mapping[str, Any], path: Any) -> None:
+        super().__init__(name, config, path)
+        self.guidance = PathFollowing3D(self.path, PFGains.from_config(require(config, "guidance", name)))
+        l1 = L1Augmentation.from_config(require(config, "l1", name), bool(config.get("adaptation", True)))
+        self.inner = RateInnerLoop(l1, RateAutopilot(require(config, "autopilot", name)))
+        _check_Ts(self, self.guidance.gains.Ts, l1, self.inner.autopilot.Ts)
+
+    def reset(self) -> None:
+        super().reset()
+        self.guidance.reset()
+        self.inner.reset()
+
+    def _step(self, state: VehicleState, x: dict[str, Any]) -> ControlOutput:
+        pf = self.guidance.step(x["p"], x["R_BI"], x["v_flu"])
+        q_ref, r_ref = flow_to_body_rates(pf.q_c, pf.r_c, x["v_flu"])
+        dV, dH, u = self.inner.step(q_ref, r_ref, x["q_up"], x["r_left"])
+        nan = float("nan")
+        return ControlOutput(
+            t=float(state.t), q_c=pf.q_c, r_c=pf.r_c, q_up_ref=q_ref, r_left_ref=r_ref, z_ref=nan, psi_ref=nan,
+            u_ad=u, dV_deg=dV, dH_deg=dH, planes_deg=self.mixer.step(dV, dH), rps=self.speed.step(),
+            gamma=pf.gamma, gamma_dot=pf.gamma_dot, p_d_native=self._M @ pf.p_d,
+            e_horizontal_m=float(pf.p_T[1]), e_vertical_m=float(pf.p_T[2]), finished=pf.finished)
+
+
+class LosDepthHeadingStack(Stack):
+    """``los_2023``: LineOfSightDepth -> DepthHeadingInnerLoop -> PlaneMixer."""
+
+    def __init__(self, name: str, config: Mapping[str, Any], path: Any) -> None:
+        super().__init__(name, config, path)
+        self.guidance = LineOfSightDepth(self.path, LOSGains.from_config(require(config, "guidance", name)))
+        l1 = L1Augmentation.from_config(require(config, "l1", name), bool(config.get("adaptation", True)))
+        self.inner = DepthHeadingInnerLoop(l1, DepthHeadingPD(require(config, "autopilot", name)))
+        _check_Ts(self, self.guidance.gains.Ts, l1, self.inner.autopilot.Ts)
+
+    def reset(self) -> None:
+        super().reset()
+        self.guidance.reset()
+        self.inner.reset()
+
+    def _step(self, state: VehicleState, x: dict[str, Any]) -> ControlOutput:
+        los = self.guidance.step(x["p"], x["heading"], float(x["v_flu"][0]))
+        dV, dH, u = self.inner.step(los.z_d, los.psi_d, float(x["p"][2]), x["theta"], x["heading"])
+        nan = float("nan")
+        return ControlOutput(
+            t=float(state.t), q_c=nan, r_c=nan, q_up_ref=nan, r_left_ref=nan, z_ref=los.z_d, psi_ref=los.psi_d,
+            u_ad=u, dV_deg=dV, dH_deg=dH, planes_deg=self.mixer.step(dV, dH), rps=self.speed.step(),
+            gamma=los.gamma, gamma_dot=los.gamma_dot, p_d_native=self._M @ los.p_d,
+            e_horizontal_m=los.y_T, e_vertical_m=los.z_err, finished=los.finished)
+
+
+def _check_Ts(stack: Stack, *others: Any) -> None:
+    vals = [stack.Ts]
+    for o in others:
+        if isinstance(o, L1Augmentation):
+            vals += [c.design.Ts for c in o.channels.values()]
+        else:
+            vals.append(float(o))
+    if not np.allclose(vals, stack.Ts, rtol=0, atol=1e-12):
+        raise ControlConfigError(f"stack {stack.name}: every piece must use the same Ts, got {vals}")
+
+
+_TYPES = {"rate_pf_3d": RatePathFollowingStack, "los_depth_heading": LosDepthHeadingStack}
+
+
+# ------------------------------------------------------------------------------------------ building
+def available_stacks() -> list[str]:
+    """Names of the stacks defined in ``data/stacks.yaml``."""
+    return sorted(load_data("stacks")["stacks"])
+
+
+def _resolve_sections(cfg: dict[str, Any]) -> dict[str, Any]:
+    out = dict(cfg)
+    for key, fname in _SECTION_FILES.items():
+        v = out.get(key)
+        if isinstance(v, str):
+            table = load_data(fname)
+            table = table.get("configs", table)
+            if v not in table:
+                raise ControlConfigError(f"{key}: no entry {v!r} in {fname}.yaml (have {sorted(table)})")
+            out[key] = dict(table[v])
+    return out
+
+
+def resolve_config(name_or_config: str | Path | Mapping[str, Any] | None = None,
+                   overrides: Mapping[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
+    """Full configuration (every named section replaced by its data) of a stack name, file or mapping.
+
+    A file or mapping either defines a stack (``type`` ...) or starts from a named one with ``base: <name>``
+    and overrides keys (nested mappings merge).  ``overrides`` are applied last.
+    """
+    stacks = load_data("stacks")
+    if name_or_config is None:
+        name_or_config = stacks.get("default", "rate_2022")
+    if isinstance(name_or_config, Mapping):
+        doc, label = dict(name_or_config), str(name_or_config.get("name", "custom"))
+    else:
+        s = str(name_or_config)
+        if Path(s).suffix.lower() in (".yaml", ".yml", ".json"):
+            doc, label = load_mapping(s), Path(s).stem
+        elif s in stacks["stacks"]:
+            doc, label = {"base": s}, s
+        else:
+            raise UnknownStackError(f"unknown control stack {s!r}; available: {sorted(stacks['stacks'])} "
+                                    "(or give a .yaml/.json stack file)")
+    base_name = doc.pop("base", None)
+    if base_name is not None:
+        if base_name not in stacks["stacks"]:
+            raise UnknownStackError(f"unknown base stack {base_name!r}; available: {sorted(stacks['stacks'])}")
+        cfg = deep_merge(_resolve_sections(stacks["stacks"][base_name]), _resolve_sections(doc))
+        label = doc.get("name", base_name if label in ("custom",) else label)
+    else:
+        cfg = _resolve_sections(doc)
+    if overrides:
+        cfg = _resolve_sections(deep_merge(cfg, _resolve_sections(dict(overrides))))
+    if cfg.get("type") not in _TYPES:
+        raise ControlConfigError(f"stack {label!r}: type must be one of {sorted(_TYPES)}, got {cfg.get('type')!r}")
+    return label, cfg
+
+
+def build_stack(name_or_config: str | Path | Mapping[str, Any] | None = None, path: Any = None,
+                overrides: Mapping[str, Any] | None = None) -> Stack:
+    """Build a stack.
+
+    Args:
+        name_or_config: a stack name (``rate_2022``, ``los_2023``), a YAML/JSON stack file, or a mapping;
+            None = the default stack (``rate_2022``).
+        path: a ``bb2_planner`` BernsteinPath, a path file / shipped path name, or None for the stack's
+            default ``path``.  It is converted to the stack's frame.
+        overrides: nested mapping merged into the configuration (e.g. ``{"adaptation": False}``,
+            ``{"guidance": {"d_m": 100.0}}``).
+
+    Raises:
+        UnknownStackError: unknown stack name.  ControlConfigError: malformed configuration.
+    """
+    label, cfg = resolve_config(name_or_config, overrides)
+    if path is None or isinstance(path, (str, Path)):
+        from bb2_planner.paths import load_path
+
+        path = load_path(path if path is not None else require(cfg, "path", f"stack {label}"))
+    return _TYPES[cfg["type"]](label, cfg, path)
