@@ -1,0 +1,219 @@
+"""The BB2 recorder: a thin rclpy node writing contract topics into a rosbag2 (mcap) bag.
+
+It subscribes with raw (serialized) subscriptions, so the CDR bytes go into the bag untouched, and
+writes them with :mod:`bb2_tools.bagfile`.  From every ``/bb2/odom`` message it also writes a
+``/tf`` ``tf2_msgs/TFMessage`` (``odom -> base_link``), so Foxglove shows the vehicle.
+
+Times, as rosbag2 records them: the MCAP log time is the *receive* time on the recorder node's
+clock (the simulation time when ``use_sim_time`` is true, i.e. the last /clock received), the
+publish time is the DDS source timestamp (wall clock).  The header stamps inside the messages are
+untouched.  A topic is added to the bag when its first message arrives, with the QoS the
+publishers offer at that moment (``offered_qos_profiles``) and the type's RIHS01 hash.
+
+Stopping: SIGINT or SIGTERM finish the bag (summary, ``rosbag2`` metadata record, metadata.yaml)
+and exit 0.  A SIGKILL loses at most the open chunk (``--chunk-size`` bytes, or
+``--flush-period`` seconds of data); ``bb2_tools.bagfile.recover`` repairs such a bag.
+
+Usage::
+
+    python -m bb2_tools.recorder --out bags/run1 [--topics REGEX ...] [--chunk-size BYTES]
+        [--flush-period S] [--use-sim-time] [--no-tf] [--ros-args ...]
+"""
+from __future__ import annotations
+
+import argparse
+import functools
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+from bb2_msgs_py.contract import ContractError, TopicSpec, message_class, select_topics
+from bb2_tools.bagfile import BagError, BagWriter, qos_entry
+
+ODOM_TOPIC = "/bb2/odom"
+TF_TOPIC = "/tf"
+TF_TYPE = "tf2_msgs/msg/TFMessage"
+# tf2_ros::DynamicBroadcasterQoS: reliable, volatile, keep last 100
+TF_QOS = qos_entry(reliability="reliable", durability="volatile", history="keep_last", depth=100)
+
+
+def qos_to_entry(profile) -> dict[str, Any]:
+    """An rclpy QoSProfile (e.g. a discovered publisher's) as a rosbag2 v9 offered-QoS entry."""
+    def name(policy) -> str:
+        n = policy.name.lower()
+        return "unknown" if n == "unknown" else n
+
+    def ns(d) -> int:
+        return int(d.nanoseconds)
+
+    return qos_entry(reliability=name(profile.reliability), durability=name(profile.durability),
+                     history=name(profile.history), depth=int(profile.depth),
+                     deadline_ns=ns(profile.deadline), lifespan_ns=ns(profile.lifespan),
+                     liveliness=name(profile.liveliness),
+                     liveliness_lease_duration_ns=ns(profile.liveliness_lease_duration),
+                     avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions))
+
+
+def tf_from_odometry(odom) -> dict[str, Any]:
+    """A ``tf2_msgs/TFMessage`` (as nested dicts) with the transform of an ``nav_msgs/Odometry``."""
+    p, q = odom.pose.pose.position, odom.pose.pose.orientation
+    return {"transforms": [{
+        "header": {"stamp": {"sec": odom.header.stamp.sec, "nanosec": odom.header.stamp.nanosec},
+                   "frame_id": odom.header.frame_id},
+        "child_frame_id": odom.child_frame_id,
+        "transform": {"translation": {"x": p.x, "y": p.y, "z": p.z},
+                      "rotation": {"x": q.x, "y": q.y, "z": q.z, "w": q.w}}}]}
+
+
+def subscription_qos(spec: TopicSpec, depth: int):
+    """The recorder's request: the contract's reliability/durability (compatible with the
+    publishers') with a deep queue so bursts (lockstep) are not dropped."""
+    from rclpy.qos import HistoryPolicy
+
+    from bb2_msgs_py.contract import qos_profile
+
+    q = qos_profile(spec.name)
+    q.history = HistoryPolicy.KEEP_LAST
+    q.depth = max(int(depth), q.depth)
+    return q
+
+
+class Recorder:
+    """Records ``topics`` into ``bag`` from a node of its own (``self.node``)."""
+
+    def __init__(self, bag: BagWriter, topics: Sequence[TopicSpec], *, tf_from_odom: bool = True,
+                 flush_period_s: float = 1.0, queue_depth: int = 1000, node_name: str = "bb2_recorder",
+                 parameter_overrides: list | None = None):
+        from rclpy.clock import Clock, ClockType
+        from rclpy.node import Node
+        from rclpy.serialization import deserialize_message
+
+        self.bag = bag
+        self.node = Node(node_name, parameter_overrides=parameter_overrides or [])
+        self._deserialize = deserialize_message
+        self._odom_cls = message_class("nav_msgs/msg/Odometry")
+        self.tf_from_odom = tf_from_odom and any(t.name == ODOM_TOPIC for t in topics)
+        self._lock = threading.Lock()
+        self._subs = []
+        self.specs = {t.name: t for t in topics if not t.bag_only}
+        for spec in self.specs.values():
+            self._subs.append(self.node.create_subscription(
+                message_class(spec.type), spec.name, functools.partial(self._on_message, spec),
+                subscription_qos(spec, queue_depth), raw=True))
+        self._flush_timer = None
+        if flush_period_s > 0:
+            self._flush_timer = self.node.create_timer(flush_period_s, self._flush,
+                                                       clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _offered_qos(self, name: str) -> list[dict[str, Any]]:
+        try:
+            return [qos_to_entry(info.qos_profile) for info in self.node.get_publishers_info_by_topic(name)]
+        except Exception as exc:  # discovery hiccup: record without QoS rather than lose data
+            self.node.get_logger().warning(f"cannot read offered QoS of {name}: {exc}")
+            return []
+
+    def _on_message(self, spec: TopicSpec, data: bytes, info: dict | None = None) -> None:
+        t_ns = self.node.get_clock().now().nanoseconds
+        pub_ns = int(info.get("source_timestamp", t_ns)) if isinstance(info, dict) else t_ns
+        with self._lock:
+            if spec.name not in self.bag.topics:
+                self.bag.add_topic(spec.name, spec.type, offered_qos=self._offered_qos(spec.name))
+            self.bag.write(spec.name, data, t_ns, pub_ns)
+            if self.tf_from_odom and spec.name == ODOM_TOPIC:
+                if TF_TOPIC not in self.bag.topics:
+                    self.bag.add_topic(TF_TOPIC, TF_TYPE, offered_qos=[TF_QOS])
+                odom = self._deserialize(data, self._odom_cls)
+                self.bag.write_dict(TF_TOPIC, tf_from_odometry(odom), t_ns, pub_ns)
+
+    def _flush(self) -> None:
+        with self._lock:
+            self.bag.flush()
+
+    def close(self) -> Path:
+        """Finish the bag and destroy the node."""
+        with self._lock:
+            path = self.bag.close()
+        self.node.destroy_node()
+        return path
+
+
+def _parse(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
+    p = argparse.ArgumentParser(prog="bb2-record", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", type=Path, default=None,
+                   help="bag directory to create (default bags/bb2_YYYYmmdd_HHMMSS)")
+    p.add_argument("--topics", nargs="+", default=None, metavar="TOPIC_OR_REGEX",
+                   help="contract topics to record (exact names or regular expressions); default all")
+    p.add_argument("--chunk-size", type=int, default=256 * 1024,
+                   help="uncompressed bytes per MCAP chunk (the most a SIGKILL loses); default 262144")
+    p.add_argument("--flush-period", type=float, default=1.0,
+                   help="also close the open chunk every S seconds of wall time (0: never); default 1")
+    p.add_argument("--depth", type=int, default=1000, help="subscription queue depth; default 1000")
+    p.add_argument("--use-sim-time", action="store_true", help="log times from /clock (use_sim_time)")
+    p.add_argument("--no-tf", action="store_true", help="do not derive /tf from /bb2/odom")
+    p.add_argument("--overwrite", action="store_true", help="allow a non-empty --out directory")
+    from rclpy.utilities import remove_ros_args
+
+    ros_argv = list(argv)
+    args = p.parse_args(remove_ros_args(args=["prog", *argv])[1:])
+    return args, ros_argv
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point: record until SIGINT/SIGTERM, then finish the bag. Returns the exit code."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from rclpy.signals import SignalHandlerOptions
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args, ros_argv = _parse(argv)
+    try:
+        specs = select_topics(args.topics)
+        if args.chunk_size <= 0 or args.depth <= 0 or args.flush_period < 0:
+            raise ContractError("--chunk-size and --depth must be > 0, --flush-period >= 0")
+        out = args.out or Path("bags") / time.strftime("bb2_%Y%m%d_%H%M%S")
+        bag = BagWriter(out, chunk_size=args.chunk_size, overwrite=args.overwrite,
+                        custom_data={"recorder": "bb2_tools.recorder",
+                                     "topics": " ".join(s.name for s in specs)})
+    except (ContractError, BagError) as exc:
+        print(f"bb2-record: error: {exc}", file=sys.stderr)
+        return 2
+
+    stop = threading.Event()
+
+    def on_signal(signum, _frame):
+        stop.set()
+
+    rclpy.init(args=["bb2_recorder", *ros_argv], signal_handler_options=SignalHandlerOptions.NO)
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if args.use_sim_time else []
+    rec = Recorder(bag, specs, tf_from_odom=not args.no_tf, flush_period_s=args.flush_period,
+                   queue_depth=args.depth, parameter_overrides=overrides)
+    executor = SingleThreadedExecutor()
+    executor.add_node(rec.node)
+    print(f"bb2-record: recording {len(specs)} topics into {out}", flush=True)
+    code = 0
+    try:
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.05)
+    except Exception as exc:  # report, then still finish the bag
+        print(f"bb2-record: error while recording: {exc!r}", file=sys.stderr)
+        code = 1
+    finally:
+        executor.remove_node(rec.node)
+        path = rec.close()
+        counts = {n: t.message_count for n, t in bag.topics.items()}
+        print(f"bb2-record: wrote {bag.message_count} messages to {path}: {counts}", flush=True)
+        for s, h in previous.items():
+            signal.signal(s, h)
+        if rclpy.ok():
+            rclpy.shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
