@@ -36,7 +36,7 @@ __all__ = [
     "TrajectoryError", "Figures", "TurningCircleFigures", "ZigzagFigures", "SelfPropulsionFigures",
     "DepthHeadingFigures", "OpenLoopFigures", "load_csv", "turning_circle_figures", "zigzag_figures",
     "self_propulsion_figures", "depth_heading_figures", "open_loop_figures", "figures_for",
-    "imposed_channels_deg", "MANEUVER_NAMES",
+    "imposed_channels_deg", "MANEUVER_NAMES", "format_value",
 ]
 
 
@@ -82,14 +82,22 @@ class Figures:
             md = f.metadata
             if not md:
                 continue
-            value, unit = getattr(self, f.name), md["unit"]
-            shown_unit, factor = _DISPLAY.get(unit, (unit, 1.0))
-            rows.append((md["label"], _convert(value, factor), shown_unit))
+            value = getattr(self, f.name)
+            rows.append(self.row(f.name))
             if md["per_length"] and np.isfinite(length):
                 rows.append((md["label"] + " / L", _convert(value, 1.0 / length), "-"))
             if md["knots"]:
                 rows.append((md["label"], _convert(value, 1.0 / KNOT_M_S), "kt"))
         return rows
+
+    def row(self, name: str) -> tuple[str, Any, str]:
+        """(label, value, unit) of one field in display units (deg, deg/s, kN)."""
+        f = {f.name: f for f in fields(self)}.get(name)
+        if f is None or not f.metadata:
+            raise KeyError(f"{type(self).__name__} has no figure {name!r}")
+        unit = f.metadata["unit"]
+        shown_unit, factor = _DISPLAY.get(unit, (unit, 1.0))
+        return f.metadata["label"], _convert(getattr(self, name), factor), shown_unit
 
     def format(self, title: str | None = None) -> str:
         """A plain-text table of :meth:`as_rows`."""
@@ -99,9 +107,14 @@ class Figures:
         return "\n".join(lines)
 
 
+def format_value(value: Any) -> str:
+    """Compact text of a figure value (float, tuple of floats, or string)."""
+    return _fmt(value)
+
+
 def _fmt(value: Any) -> str:
     if isinstance(value, tuple):
-        return "(" + ", ".join(_fmt(v) for v in value) + ")"
+        return "(" + ", ".join(_fmt(v) for v in value) + ")" if value else "none"
     if isinstance(value, float):
         return f"{value:.4g}" if abs(value) < 1e4 else f"{value:.6g}"
     return str(value)
