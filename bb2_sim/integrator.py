@@ -62,20 +62,40 @@ class Simulator:
         return self.t0 + self.n * self.h
 
     def step(self, planes_cmd_deg, rps_cmd: float, dmass_cmd_kg: float = 0.0) -> StepRecord:
-        """Advance one major step with the given commands; returns the record of t_n."""
+        """Advance one major step with the given commands; returns the record of t_n.
+
+        Raises :class:`NonFiniteStateError` (and leaves the simulator at t_n) when a stage or the new state is
+        not finite: the model has diverged.
+        """
         h, t, x = self.h, self.t, self.x
         planes_cmd = np.asarray(planes_cmd_deg, dtype=float)
+        if planes_cmd.shape != (5,) or not np.all(np.isfinite(planes_cmd)) or not np.isfinite(rps_cmd) \
+                or not np.isfinite(dmass_cmd_kg):
+            raise ValueError(f"commands must be 5 finite plane angles and finite rps/ballast, got "
+                             f"{planes_cmd.tolist()}, {rps_cmd}, {dmass_cmd_kg}")
         act = self.actuators.step(planes_cmd, rps_cmd, dmass_cmd_kg)
         f = self.model.evaluate
-        ev1 = f(t, x, act, self.dmem)
-        self.dmem.store(t, ev1.urel_sections)
-        k1 = ev1.xdot
-        k2 = f(t + h * 0.5, x + (h * 0.5) * k1, act, self.dmem).xdot
-        k3 = f(t + h * 0.75, x + (h * 0.75) * k2, act, self.dmem).xdot
-        x_new = x + h * (2.0 / 9.0 * k1 + 1.0 / 3.0 * k2 + 4.0 / 9.0 * k3)
+        with np.errstate(all="ignore"):
+            try:
+                ev1 = f(t, x, act, self.dmem)
+                self.dmem.store(t, ev1.urel_sections)
+                k1 = ev1.xdot
+                x2 = x + (h * 0.5) * k1
+                self._check(t + h * 0.5, x2)
+                k2 = f(t + h * 0.5, x2, act, self.dmem).xdot
+                x3 = x + (h * 0.75) * k2
+                self._check(t + h * 0.75, x3)
+                k3 = f(t + h * 0.75, x3, act, self.dmem).xdot
+            except (ValueError, OverflowError, ZeroDivisionError) as e:
+                raise NonFiniteStateError(t, x, f"model evaluation ({e})") from e
+            x_new = x + h * (2.0 / 9.0 * k1 + 1.0 / 3.0 * k2 + 4.0 / 9.0 * k3)
+        self._check(t + h, x_new)
         rec = StepRecord(t, x.copy(), planes_cmd, float(rps_cmd), act, ev1)
-        if not np.all(np.isfinite(x_new)):
-            raise NonFiniteStateError(t + h, x_new)
         self.x = x_new
         self.n += 1
         return rec
+
+    @staticmethod
+    def _check(t: float, x: np.ndarray) -> None:
+        if not np.all(np.isfinite(x)):
+            raise NonFiniteStateError(t, x)

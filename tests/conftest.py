@@ -21,3 +21,11 @@ def shared_path(*parts: str) -> Path:
 @pytest.fixture
 def shared():
     return shared_path
+
+
+@pytest.fixture(scope="session")
+def authors_surfaces():
+    """The authors' hull surfaces from ../shared/bb2_rom/surface (skips without ../shared)."""
+    from bb2_sim.geometry import load_surface_dir
+
+    return load_surface_dir(shared_path("bb2_rom", "surface"))
