@@ -81,6 +81,15 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _fmt(value) -> str:
+    """A figure for printing: numbers to 4 significant digits, tuples element-wise."""
+    if isinstance(value, (tuple, list)):
+        return "(" + ", ".join(_fmt(v) for v in value) + ")"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
 def _progress(enabled: bool, total: float):
     if not enabled:
         return None
@@ -139,8 +148,7 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
     if fig is not None:
         print("  figures:")
         for name, value, unit in fig.as_rows():
-            print(f"    {name:<40s} {value:>12.4g} {unit}" if isinstance(value, (int, float)) and value is not None
-                  else f"    {name:<40s} {value!s:>12} {unit}")
+            print(f"    {name:<40s} {_fmt(value):>14} {unit}")
     if a.out:
         print(f"  trajectory: {a.out}")
     if a.plot and len(res.traj["t_s"]) > 1:
