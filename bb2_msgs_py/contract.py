@@ -33,6 +33,8 @@ FRAME_MAP_NED = "map_ned"
 """Optional marine world frame, NED (x north = ENU y, y east = ENU x, z down)."""
 FRAME_BASE_LINK_FRD = "base_link_frd"
 """Optional marine body frame FRD at the CG."""
+FRAME_NATIVE = "native"
+"""The ROM's own frames (earth z up, bow along -x at psi = 0; body x aft / y stbd / z up): see bb2_sim.state."""
 FRAME_PATH = "path_frenet"
 """Path frame at the closest path point: x along the path tangent, y left, z up (errors)."""
 
@@ -43,7 +45,14 @@ FRAMES: dict[str, str] = {
     FRAME_MAP_NED: "optional marine world frame, NED",
     FRAME_BASE_LINK_FRD: "optional marine body frame at the CG, FRD",
     FRAME_PATH: "path (Serret-Frenet-like) frame: x along track, y left, z up",
+    FRAME_NATIVE: "ROM native frames: earth z up (bow along -x at psi = 0), body x aft / y stbd / z up",
 }
+
+STATE_NATIVE_LABEL = "t_x_y_z_phi_theta_psi_u_v_w_p_q_r"
+"""``layout.dim[0].label`` of ``/bb2/state_native``: data = [t (s), x12 native (m, rad, m/s, rad/s)]."""
+BERNSTEIN_POINTS_LABEL = "control_points"
+"""``layout.dim[0].label`` of ``/bb2/path/bernstein``; ``dim[1].label`` is the path frame
+(``native``, ``controller``, ``enu``, ``ned``); ``data_offset`` = 2 and data = [t0, tf, c00, c01, c02, c10, ...]."""
 
 PLANE_JOINTS: tuple[str, ...] = ("delta1", "delta2", "delta3", "delta4", "delta5")
 """Joint names of the five control planes in JointState messages (rad, ROM sign convention)."""
@@ -135,8 +144,15 @@ CONTRACT: tuple[TopicSpec, ...] = (
               "commanded deflections delta1..delta5 (stamp checked for staleness)"),
     TopicSpec("/bb2/propeller/cmd", "sensor_msgs/msg/JointState", "command", "base_link",
               "rad/s (velocity)", AUTOPILOT, (SIM, RECORDER), "commanded propeller shaft speed"),
+    TopicSpec("/bb2/state_native", "std_msgs/msg/Float64MultiArray", "command", FRAME_NATIVE,
+              "[t s, x y z m, phi theta psi rad, u v w m/s, p q r rad/s] (float64, exact)", SIM,
+              (PATHF, AUTOPILOT, RECORDER),
+              "exact ROM state of every step, reliable: what the controllers run on and the lockstep trigger"),
     TopicSpec("/bb2/path", "nav_msgs/msg/Path", "latched", "map", "m (ENU), quaternion (path tangent)",
               PLANNER, (PATHF, RECORDER), "Bernstein path samples"),
+    TopicSpec("/bb2/path/bernstein", "std_msgs/msg/Float64MultiArray", "latched", "dim[1].label (path frame)",
+              "[t0 s, tf s, control points m row-major] (data_offset 2, float64, exact)", PLANNER,
+              (PATHF, RECORDER), "the exact Bernstein path: control points and time span"),
     TopicSpec("/bb2/guidance/rate_cmd", "geometry_msgs/msg/Vector3Stamped", "command", "base_link",
               "rad/s: x = 0, y = -q_c, z = r_c (FLU body rates)", PATHF, (AUTOPILOT, RECORDER),
               "path-following pitch/yaw rate commands"),

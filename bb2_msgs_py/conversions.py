@@ -24,8 +24,8 @@ import numpy as np
 from bb2_sim import frames
 from bb2_sim.state import VehicleState
 
-from .contract import (FRAME_BASE_LINK, FRAME_MAP, FRAME_ODOM, FRAME_PATH, PLANE_JOINTS,
-                       PROPELLER_JOINT, VH_JOINTS, ContractError)
+from .contract import (BERNSTEIN_POINTS_LABEL, FRAME_BASE_LINK, FRAME_MAP, FRAME_ODOM, FRAME_PATH,
+                       PLANE_JOINTS, PROPELLER_JOINT, STATE_NATIVE_LABEL, VH_JOINTS, ContractError)
 
 SENSORS_YAML = Path(__file__).resolve().parent / "data" / "sensors.yaml"
 
@@ -395,3 +395,65 @@ def path_from_message(msg) -> np.ndarray:
         raise ConversionError(f"path must be in {FRAME_MAP!r}, got {msg.header.frame_id!r}")
     p_enu = np.array([[ps.pose.position.x, ps.pose.position.y, ps.pose.position.z] for ps in msg.poses])
     return frames.earth_enu_to_native(p_enu.reshape(-1, 3))
+
+
+# ----------------------------------------------------------------------------------------- exact native state
+def state_native_message(state: VehicleState):
+    """``std_msgs/Float64MultiArray`` of the exact ROM state: ``[t, x, y, z, phi, theta, psi, u, v, w, p, q, r]``.
+
+    Native frames and SI units (see :class:`bb2_sim.state.VehicleState`); float64 end to end, so
+    :func:`state_native_from_message` returns the very same numbers (no quaternion round trip).
+    """
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
+
+    if not math.isfinite(state.t):
+        raise ConversionError(f"state time must be finite, got {state.t!r}")
+    data = np.concatenate([[float(state.t)], state.as_vector()])
+    layout = MultiArrayLayout(dim=[MultiArrayDimension(label=STATE_NATIVE_LABEL, size=13, stride=13)],
+                              data_offset=0)
+    return Float64MultiArray(layout=layout, data=data.tolist())
+
+
+def state_native_from_message(msg) -> VehicleState:
+    """Inverse of :func:`state_native_message` (exact); rejects another layout."""
+    dims = list(msg.layout.dim)
+    data = np.asarray(msg.data, dtype=float)
+    if len(dims) != 1 or dims[0].label != STATE_NATIVE_LABEL or data.shape != (13,) or msg.layout.data_offset:
+        raise ConversionError(f"not a native state: layout {[(d.label, d.size) for d in dims]}, "
+                              f"{data.size} values (expected {STATE_NATIVE_LABEL!r}, 13 values)")
+    return VehicleState.from_vector(float(data[0]), data[1:])
+
+
+# ----------------------------------------------------------------------------------------- exact Bernstein path
+def bernstein_message(path):
+    """``std_msgs/Float64MultiArray`` of a :class:`bb2_planner.bernstein.BernsteinPath` (exact).
+
+    Layout: ``dim[0]`` = (``control_points``, n+1, (n+1) d), ``dim[1]`` = (path frame, d, d),
+    ``data_offset`` = 2; ``data = [t0, tf, c[0,0], c[0,1], ..., c[n,d-1]]`` (metres, seconds).
+    """
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
+
+    c = np.asarray(path.control_points, dtype=float)
+    n1, d = c.shape
+    layout = MultiArrayLayout(dim=[MultiArrayDimension(label=BERNSTEIN_POINTS_LABEL, size=n1, stride=n1 * d),
+                                   MultiArrayDimension(label=str(path.frame), size=d, stride=d)],
+                              data_offset=2)
+    return Float64MultiArray(layout=layout,
+                             data=np.concatenate([[float(path.t0), float(path.tf)], c.ravel()]).tolist())
+
+
+def bernstein_from_message(msg, name: str = ""):
+    """Inverse of :func:`bernstein_message`: the same control points, span and frame."""
+    from bb2_planner.bernstein import BernsteinPath, PathError
+
+    dims = list(msg.layout.dim)
+    data = np.asarray(msg.data, dtype=float)
+    if (len(dims) != 2 or dims[0].label != BERNSTEIN_POINTS_LABEL or msg.layout.data_offset != 2
+            or data.size != 2 + dims[0].size * dims[1].size):
+        raise ConversionError(f"not a Bernstein path: layout {[(d.label, d.size) for d in dims]}, "
+                              f"offset {msg.layout.data_offset}, {data.size} values")
+    try:
+        return BernsteinPath(data[2:].reshape(dims[0].size, dims[1].size), data[0], data[1],
+                             frame=dims[1].label, name=name)
+    except PathError as exc:
+        raise ConversionError(f"bad Bernstein path message: {exc}") from None

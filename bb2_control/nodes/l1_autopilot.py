@@ -1,0 +1,128 @@
+"""``l1_autopilot`` node: rate command + vehicle state -> virtual plane commands (δV, δH) and the propeller.
+
+A thin shell around the mission stack's inner loop (``stack.inner``: rate L1 + proportional rate autopilot)
+and speed command (``stack.speed``), built by the mission runner's factory.  For each state stamp it waits
+for the rate command with the same stamp (``/bb2/guidance/rate_cmd``), converts the flow-frame commands to
+body-rate references (:func:`bb2_control.path_following.flow_to_body_rates`, as ``Stack.step`` does), steps
+the inner loop once and publishes, stamped like the state:
+
+* ``/bb2/autopilot/vh_cmd`` (``JointState`` delta_V, delta_H, rad);
+* ``/bb2/propeller/cmd`` (``JointState`` propeller, velocity rad/s).
+
+A stamp already answered is answered again from the cache (lockstep re-sends); the loop never steps twice.
+
+Parameters: ``mission_file``, ``state_source`` (native | odometry), ``status_period_s``, ``strict_remaps``.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from typing import Sequence
+
+from bb2_tools.node_common import (NodeStatus, StampedCache, check_remaps, declare, mission_pieces,
+                                   require_choice, require_positive, require_rate_stack, run_node,
+                                   subscribe_state, time_msg)
+
+TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd",
+          "/bb2/propeller/cmd", "/bb2/status")
+KEEP = 20  # pending inputs kept per kind (stamps not yet paired)
+
+
+class L1AutopilotShell:
+    def __init__(self, argv: Sequence[str]):
+        from rclpy.node import Node
+
+        from bb2_msgs_py.contract import message_class, qos_profile, topic
+
+        self.node = node = Node("l1_autopilot")
+        mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
+        source = require_choice("state_source", declare(
+            node, "state_source", "native", "native (/bb2/state_native, exact) | odometry (/bb2/odom)"),
+            ("native", "odometry"))
+        period = require_positive("status_period_s", declare(node, "status_period_s", 1.0,
+                                                             "wall period of this node's /bb2/status"))
+        strict = bool(declare(node, "strict_remaps", False, "a remap rule naming no topic of this node is an error"))
+        check_remaps(node, argv, TOPICS, strict=strict)
+        self.mission, comp = mission_pieces(mission_file)
+        self.stack = comp.stack
+        require_rate_stack(self.stack)
+        self.cache = StampedCache()
+        self.states: dict[int, object] = {}
+        self.rates: dict[int, tuple[float, float]] = {}
+        self.counts = {"answered": 0, "replayed": 0, "rejected": 0, "errors": 0}
+        self.pub = {n: node.create_publisher(message_class(topic(n).type), n, qos_profile(n)) for n in TOPICS[3:5]}
+        self.sub_rate = node.create_subscription(message_class("geometry_msgs/msg/Vector3Stamped"),
+                                                 "/bb2/guidance/rate_cmd", self._on_rate,
+                                                 qos_profile("/bb2/guidance/rate_cmd"))
+        self.sub_state = subscribe_state(node, source, self._on_state)
+        self.status = NodeStatus(node, "bb2/l1_autopilot", period, lambda: {
+            "mission": self.mission.name, "stack": self.stack.name, "state_source": source,
+            "adaptation": str(self.stack.adaptation).lower(), **{k: str(v) for k, v in self.counts.items()}})
+
+    def _on_rate(self, msg) -> None:
+        from bb2_msgs_py import conversions as cv
+
+        try:
+            q_c, r_c = cv.rate_command_from_message(msg)
+        except cv.ConversionError as exc:
+            self.counts["rejected"] += 1
+            self.node.get_logger().warning(f"rejected rate command: {exc}", throttle_duration_sec=2.0)
+            return
+        if not (math.isfinite(q_c) and math.isfinite(r_c)):
+            self.counts["rejected"] += 1
+            self.node.get_logger().warning(f"rejected non-finite rate command ({q_c}, {r_c})",
+                                           throttle_duration_sec=2.0)
+            return
+        ns = cv.stamp_to_ns(msg.header.stamp)
+        self._offer(ns, rate=(q_c, r_c))
+
+    def _on_state(self, state, stamp_ns: int) -> None:
+        self._offer(stamp_ns, state=state)
+
+    def _offer(self, ns: int, *, state=None, rate=None) -> None:
+        if self.cache.replay(ns):
+            self.counts["replayed"] += 1
+            return
+        if state is not None:
+            self.states[ns] = state
+        if rate is not None:
+            self.rates[ns] = rate
+        if ns in self.states and ns in self.rates:
+            self._answer(ns, self.states.pop(ns), self.rates.pop(ns))
+            for d in (self.states, self.rates):  # drop inputs older than the answered stamp
+                for k in [k for k in d if k <= ns]:
+                    del d[k]
+        for d in (self.states, self.rates):
+            while len(d) > KEEP:
+                del d[min(d)]
+
+    def _answer(self, ns: int, state, rate: tuple[float, float]) -> None:
+        from bb2_control.errors import NonFiniteInputError
+        from bb2_control.path_following import flow_to_body_rates
+        from bb2_msgs_py import conversions as cv
+
+        stack = self.stack
+        try:
+            x = stack._inputs(state)  # the stack's own frame conversion (shared with Stack.step)
+            q_ref, r_ref = flow_to_body_rates(rate[0], rate[1], x["v_flu"])
+            dV_deg, dH_deg, _ = stack.inner.step(q_ref, r_ref, x["q_up"], x["r_left"])
+            rps = stack.speed.step()
+        except (NonFiniteInputError, ValueError) as exc:
+            self.counts["errors"] += 1
+            self.node.get_logger().error(f"autopilot failed at t = {state.t:.3f} s: {exc}", throttle_duration_sec=2.0)
+            return
+        st = time_msg(ns)
+        vh = cv.vh_message(0.0, math.radians(dV_deg), math.radians(dH_deg))
+        prop = cv.propeller_message(0.0, rps * 2.0 * math.pi)
+        vh.header.stamp = prop.header.stamp = st
+        self.cache.store(ns, [(self.pub["/bb2/autopilot/vh_cmd"], vh), (self.pub["/bb2/propeller/cmd"], prop)])
+        self.counts["answered"] += 1
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Entry point (``ros2 run bb2_control l1_autopilot``)."""
+    return run_node("l1_autopilot", L1AutopilotShell, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

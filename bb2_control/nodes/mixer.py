@@ -1,0 +1,71 @@
+"""``mixer`` node: virtual plane commands (δV, δH) -> the five plane commands δ1..δ5.
+
+A thin shell around the mission stack's X-plane mixer (``stack.mixer``, built by the mission runner's
+factory): each ``/bb2/autopilot/vh_cmd`` (rad) becomes one ``/bb2/planes/cmd`` (``JointState``
+delta1..delta5, rad) with the same stamp.  A stamp already answered is answered again from the cache.
+
+Parameters: ``mission_file``, ``status_period_s``, ``strict_remaps``.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from typing import Sequence
+
+from bb2_tools.node_common import (NodeStatus, StampedCache, check_remaps, declare, mission_pieces,
+                                   require_positive, run_node)
+
+TOPICS = ("/bb2/autopilot/vh_cmd", "/bb2/planes/cmd", "/bb2/status")
+
+
+class MixerShell:
+    def __init__(self, argv: Sequence[str]):
+        from rclpy.node import Node
+
+        from bb2_msgs_py.contract import message_class, qos_profile
+
+        self.node = node = Node("mixer")
+        mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
+        period = require_positive("status_period_s", declare(node, "status_period_s", 1.0,
+                                                             "wall period of this node's /bb2/status"))
+        strict = bool(declare(node, "strict_remaps", False, "a remap rule naming no topic of this node is an error"))
+        check_remaps(node, argv, TOPICS, strict=strict)
+        self.mission, comp = mission_pieces(mission_file)
+        self.mixer = comp.stack.mixer
+        self.cache = StampedCache()
+        self.counts = {"answered": 0, "replayed": 0, "rejected": 0}
+        self.pub = node.create_publisher(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd",
+                                         qos_profile("/bb2/planes/cmd"))
+        self.sub = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/autopilot/vh_cmd",
+                                            self._on_vh, qos_profile("/bb2/autopilot/vh_cmd"))
+        self.status = NodeStatus(node, "bb2/mixer", period, lambda: {
+            "mission": self.mission.name, **{k: str(v) for k, v in self.counts.items()}})
+
+    def _on_vh(self, msg) -> None:
+        from bb2_control.errors import NonFiniteInputError
+        from bb2_msgs_py import conversions as cv
+
+        ns = cv.stamp_to_ns(msg.header.stamp)
+        if self.cache.replay(ns):
+            self.counts["replayed"] += 1
+            return
+        try:
+            dV, dH = cv.vh_from_message(msg)
+            planes_deg = self.mixer.step(math.degrees(dV), math.degrees(dH))
+        except (cv.ConversionError, NonFiniteInputError) as exc:
+            self.counts["rejected"] += 1
+            self.node.get_logger().warning(f"rejected vh command: {exc}", throttle_duration_sec=2.0)
+            return
+        out = cv.planes_message(0.0, [math.radians(float(d)) for d in planes_deg])
+        out.header.stamp = msg.header.stamp
+        self.cache.store(ns, [(self.pub, out)])
+        self.counts["answered"] += 1
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Entry point (``ros2 run bb2_control mixer``)."""
+    return run_node("mixer", MixerShell, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,137 @@
+"""``path_following`` node: vehicle state + Bernstein path -> pitch/yaw rate commands q_c, r_c.
+
+A thin shell around the path-following law of the mission's stack (``stack.guidance``, built by the mission
+runner's factory): per state it publishes
+
+* ``/bb2/guidance/rate_cmd`` (``Vector3Stamped``, base_link FLU: (0, -q_c, r_c) rad/s), stamped with the state;
+* ``/bb2/guidance/path_error`` (path frame: along, left, up; m);
+* ``/bb2/mission/progress`` (fraction of the path length travelled, from the virtual time).
+
+The path comes from the planner's ``/bb2/path/bernstein`` (``path_source: topic``, exact) or straight from
+the mission file (``path_source: mission``).  A state whose stamp was already answered (the lockstep
+simulator re-sends unanswered states) is answered again from the cache, the law is not stepped twice.
+
+Parameters: ``mission_file``, ``state_source`` (native | odometry), ``path_source`` (topic | mission),
+``status_period_s``, ``strict_remaps``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import sys
+from typing import Sequence
+
+from bb2_tools.node_common import (NodeStatus, StampedCache, check_remaps, components_for, declare,
+                                   mission_only, require_choice, require_positive, require_rate_stack,
+                                   run_node, subscribe_state, time_msg)
+
+TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/path/bernstein", "/bb2/guidance/rate_cmd",
+          "/bb2/guidance/path_error", "/bb2/mission/progress", "/bb2/status")
+
+
+class PathFollowingShell:
+    def __init__(self, argv: Sequence[str]):
+        from rclpy.node import Node
+
+        from bb2_msgs_py.contract import message_class, qos_profile, topic
+
+        self.node = node = Node("path_following")
+        mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
+        source = require_choice("state_source", declare(
+            node, "state_source", "native", "native (/bb2/state_native, exact) | odometry (/bb2/odom)"),
+            ("native", "odometry"))
+        self.path_source = require_choice("path_source", declare(
+            node, "path_source", "topic", "topic (/bb2/path/bernstein from the planner) | mission (mission file)"),
+            ("topic", "mission"))
+        period = require_positive("status_period_s", declare(node, "status_period_s", 1.0,
+                                                             "wall period of this node's /bb2/status"))
+        strict = bool(declare(node, "strict_remaps", False, "a remap rule naming no topic of this node is an error"))
+        check_remaps(node, argv, TOPICS, strict=strict)
+
+        self.mission = mission_only(mission_file)
+        self.stack = None
+        self.length_m = float("nan")
+        self.cache = StampedCache()
+        self.counts = {"states": 0, "answered": 0, "replayed": 0, "waiting_for_path": 0, "errors": 0}
+        self.finished = False
+        self.pub = {n: node.create_publisher(message_class(topic(n).type), n, qos_profile(n)) for n in TOPICS[3:6]}
+        if self.path_source == "mission":
+            self._build(self.mission.path)
+        else:
+            self.sub_path = node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"),
+                                                     "/bb2/path/bernstein", self._on_path,
+                                                     qos_profile("/bb2/path/bernstein"))
+        self.sub_state = subscribe_state(node, source, self._on_state)
+        self.status = NodeStatus(node, "bb2/path_following", period, lambda: {
+            "mission": self.mission.name, "path_source": self.path_source, "state_source": source,
+            "path_received": str(self.stack is not None).lower(), "finished": str(self.finished).lower(),
+            **{k: str(v) for k, v in self.counts.items()}})
+
+    def _build(self, path) -> None:
+        import numpy as np
+
+        if self.stack is not None:
+            return
+        mission = self.mission
+        if self.path_source == "topic":
+            if not (path.frame == mission.path.frame and path.t0 == mission.path.t0 and path.tf == mission.path.tf
+                    and np.array_equal(path.control_points, mission.path.control_points)):
+                self.node.get_logger().warning("the planner's path differs from this node's mission path: "
+                                               "flying the planner's")
+            mission = dataclasses.replace(mission, path=path)
+        stack = components_for(mission).stack
+        require_rate_stack(stack)
+        self.stack = stack
+        self.length_m = stack.path.arc_length()
+        self.node.get_logger().info(f"path following ready: stack {stack.name}, path {path!r}, "
+                                    f"length {self.length_m:.1f} m")
+
+    def _on_path(self, msg) -> None:
+        from bb2_msgs_py import conversions as cv
+
+        try:
+            path = cv.bernstein_from_message(msg, name=self.mission.path.name)
+        except cv.ConversionError as exc:
+            self.node.get_logger().error(f"ignored /bb2/path/bernstein: {exc}")
+            return
+        self._build(path)
+
+    def _on_state(self, state, stamp_ns: int) -> None:
+        from bb2_control.errors import NonFiniteInputError, PathFollowingError
+        from bb2_msgs_py import conversions as cv
+
+        self.counts["states"] += 1
+        if self.stack is None:
+            self.counts["waiting_for_path"] += 1
+            return
+        if self.cache.replay(stamp_ns):
+            self.counts["replayed"] += 1
+            return
+        stack = self.stack
+        try:
+            x = stack._inputs(state)  # the stack's own frame conversion (shared with Stack.step)
+            pf = stack.guidance.step(x["p"], x["R_BI"], x["v_flu"])
+        except (NonFiniteInputError, PathFollowingError, ValueError) as exc:
+            self.counts["errors"] += 1
+            self.node.get_logger().error(f"path following failed at t = {state.t:.3f} s: {exc}",
+                                         throttle_duration_sec=2.0)
+            return
+        st = time_msg(stamp_ns)
+        rate = cv.rate_command_message(state.t, pf.q_c, pf.r_c)
+        err = cv.path_error_message(state.t, pf.p_T)
+        rate.header.stamp = err.header.stamp = st
+        from std_msgs.msg import Float64
+        progress = stack.path.arc_length(stack.path.t0, min(pf.gamma, stack.path.tf)) / self.length_m
+        self.finished = bool(pf.finished)
+        self.cache.store(stamp_ns, [(self.pub["/bb2/guidance/rate_cmd"], rate),
+                                    (self.pub["/bb2/guidance/path_error"], err),
+                                    (self.pub["/bb2/mission/progress"], Float64(data=float(progress)))])
+        self.counts["answered"] += 1
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Entry point (``ros2 run bb2_control path_following``)."""
+    return run_node("path_following", PathFollowingShell, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

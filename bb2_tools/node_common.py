@@ -1,0 +1,324 @@
+"""Shared rclpy plumbing of the BB2 nodes (simulator, planner, path_following, l1_autopilot, mixer).
+
+A node here is a thin shell: declared parameters in, a library call, messages out.  This module holds
+what every shell needs and nothing numerical:
+
+* :func:`run_node` -- ``rclpy.init(args=args)``, build the node, spin until SIGINT/SIGTERM, exit 0;
+  a malformed params file, parameter or mission gives one clear line on stderr and exit status 2.
+* :func:`declare` -- a parameter with its description (``ParameterDescriptor``), so
+  ``--ros-args --params-file F.yaml`` and ``-p name:=value`` apply as usual.
+* :func:`check_remaps` -- a ``-r from:=to`` rule that names no topic of the node is reported (or is
+  an error with ``strict_remaps: true``), so a typo in a remap never passes silently.
+* :func:`mission_pieces` -- the mission's model/simulator/stack, built by the mission runner's own
+  factory (:func:`bb2_tools.mission.mission_components`), so the graph equals the library runner.
+* :class:`Throttle` -- wall-clock throttling of repeated warnings with a count of the suppressed ones.
+
+Topic remapping is the standard ROS 2 one: ``--ros-args -r /bb2/odom:=/other/odom`` (optionally
+``node_name:/bb2/odom:=...``).  Every node publishes and subscribes on the absolute contract names of
+:mod:`bb2_msgs_py.contract`, which remapping rewrites.
+"""
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+import time
+from typing import Any, Callable, Iterable, Sequence
+
+EXIT_OK = 0
+EXIT_RUNTIME_ERROR = 1
+EXIT_BAD_INPUT = 2
+
+
+class NodeConfigError(ValueError):
+    """A parameter, params file, remap or mission that a node cannot run with."""
+
+
+# ----------------------------------------------------------------------------------------- parameters
+def declare(node, name: str, default: Any, description: str, *, read_only: bool = False) -> Any:
+    """Declare ``name`` with ``default`` and a description; return its (possibly overridden) value.
+
+    A value of the wrong type in a params file raises :class:`NodeConfigError` naming the parameter.
+    """
+    from rcl_interfaces.msg import ParameterDescriptor
+    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+
+    try:
+        p = node.declare_parameter(name, default, ParameterDescriptor(description=description,
+                                                                      read_only=read_only))
+    except (InvalidParameterTypeException, InvalidParameterValueException, TypeError) as exc:
+        raise NodeConfigError(f"parameter {name!r}: {exc}") from None
+    return p.value
+
+
+def require_choice(name: str, value: str, choices: Iterable[str]) -> str:
+    choices = tuple(choices)
+    if value not in choices:
+        raise NodeConfigError(f"parameter {name!r} must be one of {list(choices)}, got {value!r}")
+    return value
+
+
+def require_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
+    v = float(value)
+    if not (v >= 0 if allow_zero else v > 0) or v != v or v == float("inf"):
+        raise NodeConfigError(f"parameter {name!r} must be {'>= 0' if allow_zero else '> 0'} and finite, "
+                              f"got {value!r}")
+    return v
+
+
+# ----------------------------------------------------------------------------------------- remaps
+def remap_rules(argv: Sequence[str]) -> list[tuple[str | None, str, str]]:
+    """``(node or None, from, to)`` of every ``-r``/``--remap`` rule in the ROS arguments of ``argv``."""
+    rules: list[tuple[str | None, str, str]] = []
+    in_ros = False
+    it = iter(list(argv))
+    for a in it:
+        if a == "--ros-args":
+            in_ros = True
+            continue
+        if a == "--":
+            in_ros = False
+            continue
+        if in_ros and a in ("-r", "--remap"):
+            rule = next(it, "")
+            if ":=" not in rule:
+                continue
+            lhs, rhs = rule.split(":=", 1)
+            node = None
+            if ":" in lhs and not lhs.startswith("rosservice:") and not lhs.startswith("rostopic:"):
+                node, lhs = lhs.split(":", 1)
+            rules.append((node, lhs, rhs))
+    return rules
+
+
+def check_remaps(node, argv: Sequence[str], topics: Iterable[str], *, strict: bool) -> list[str]:
+    """Report every remap rule for this node whose ``from`` is none of its ``topics``.
+
+    Returns the messages; with ``strict`` raises :class:`NodeConfigError` instead.
+    """
+    known = set(topics)
+    known |= {t.lstrip("/") for t in known}
+    bad = []
+    for target, lhs, rhs in remap_rules(argv):
+        if target is not None and target != node.get_name():
+            continue
+        if lhs in ("__node", "__name", "__ns", "__namespace") or lhs in known:
+            continue
+        bad.append(f"remap {lhs}:={rhs} matches no topic of node {node.get_name()!r} "
+                   f"(its topics: {', '.join(sorted(t for t in known if t.startswith('/')))})")
+    if bad and strict:
+        raise NodeConfigError("; ".join(bad))
+    for msg in bad:
+        node.get_logger().warning(msg)
+    return bad
+
+
+# ----------------------------------------------------------------------------------------- mission
+def mission_pieces(mission_file: str):
+    """``(mission, components)``: the mission file loaded and built by the mission runner's own factory
+    (:func:`bb2_tools.mission.mission_components`: model, simulator at x0, stack), so the graph starts
+    from the very objects the library runner starts from."""
+    mission = mission_only(mission_file)
+    return mission, components_for(mission)
+
+
+# ----------------------------------------------------------------------------------------- throttling
+class Throttle:
+    """At most one log line per ``period_s`` of wall time per key; counts what it suppressed."""
+
+    def __init__(self, logger, period_s: float = 2.0):
+        self.logger, self.period_s = logger, float(period_s)
+        self._last: dict[str, float] = {}
+        self._suppressed: dict[str, int] = {}
+        self.counts: dict[str, int] = {}
+
+    def warn(self, key: str, message: str) -> None:
+        self.counts[key] = self.counts.get(key, 0) + 1
+        now = time.monotonic()
+        if now - self._last.get(key, -1e18) >= self.period_s:
+            extra = self._suppressed.pop(key, 0)
+            self.logger.warning(message + (f" ({extra} similar suppressed)" if extra else ""))
+            self._last[key] = now
+        else:
+            self._suppressed[key] = self._suppressed.get(key, 0) + 1
+
+
+# ----------------------------------------------------------------------------------------- run
+def _error(name: str, message: str) -> None:
+    print(f"{name}: error: {message}", file=sys.stderr, flush=True)
+
+
+def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str] | None = None) -> int:
+    """Init rclpy with ``args`` (``sys.argv`` when None), build ``factory(argv)``, spin until SIGINT/SIGTERM.
+
+    ``factory`` returns an object with ``.node`` (an rclpy Node) and optionally ``close()`` and
+    ``done`` (a bool property: stop spinning and exit 0, e.g. the simulator's ``exit_at_end``).
+    Exit status: 0 clean stop, 2 bad params file / parameter / mission, 1 runtime error.
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    argv = list(sys.argv if args is None else args)
+    try:
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:  # rcl's own message names the bad params file / argument
+        _error(name, f"cannot start ROS (bad --ros-args or params file?): {exc}")
+        return EXIT_BAD_INPUT
+    stop = threading.Event()
+    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    shell = None
+    code = EXIT_OK
+    try:
+        try:
+            shell = factory(argv)
+        except NodeConfigError as exc:
+            _error(name, str(exc))
+            return EXIT_BAD_INPUT
+        executor = SingleThreadedExecutor()
+        executor.add_node(shell.node)
+        while not stop.is_set() and rclpy.ok() and not getattr(shell, "done", False):
+            executor.spin_once(timeout_sec=0.1)
+    except Exception as exc:
+        _error(name, f"{type(exc).__name__}: {exc}")
+        code = EXIT_RUNTIME_ERROR
+    finally:
+        if shell is not None:
+            try:
+                if hasattr(shell, "close"):
+                    shell.close()
+                shell.node.destroy_node()
+            except Exception:  # pragma: no cover - best effort at shutdown
+                pass
+        for s, h in previous.items():
+            signal.signal(s, h)
+        if rclpy.ok():
+            rclpy.shutdown()
+    return code
+
+
+# ----------------------------------------------------------------------------------------- status
+class NodeStatus:
+    """Publishes ``/bb2/status`` (``diagnostic_msgs/DiagnosticArray``) for a node every ``period_s`` wall
+    seconds.  The header stamp is the node's clock (the simulation time with ``use_sim_time``)."""
+
+    def __init__(self, node, name: str, period_s: float, values: Callable[[], dict[str, str]]):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.clock import Clock, ClockType
+
+        from bb2_msgs_py.contract import qos_profile
+
+        self.node, self.name, self.values = node, name, values
+        self.level, self.message = 0, "running"
+        self.pub = node.create_publisher(DiagnosticArray, "/bb2/status", qos_profile("/bb2/status"))
+        self.timer = node.create_timer(period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def publish(self) -> None:
+        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+        from std_msgs.msg import Header
+
+        vals = {"node_time_s": f"{self.node.get_clock().now().nanoseconds * 1e-9:.6f}",
+                "use_sim_time": str(self.node.get_parameter("use_sim_time").value).lower()}
+        vals.update(self.values())
+        st = DiagnosticStatus(level=bytes([self.level]), name=self.name, message=self.message,
+                              hardware_id=self.node.get_fully_qualified_name(),
+                              values=[KeyValue(key=k, value=str(v)) for k, v in vals.items()])
+        self.pub.publish(DiagnosticArray(header=Header(stamp=self.node.get_clock().now().to_msg()), status=[st]))
+
+
+class StampedCache:
+    """The messages a node published for an input stamp, to replay them when the same input comes again
+    (the lockstep simulator re-sends an unanswered state: every stage answers it again, identically,
+    without stepping its controller twice)."""
+
+    def __init__(self):
+        self.stamp_ns: int | None = None
+        self.messages: list[tuple[Any, Any]] = []
+
+    def replay(self, stamp_ns: int) -> bool:
+        """Re-publish the cached answer if ``stamp_ns`` is the cached stamp; True if the input is handled
+        (replayed, or older than the cache and ignored)."""
+        if self.stamp_ns is None or stamp_ns > self.stamp_ns:
+            return False
+        if stamp_ns == self.stamp_ns:
+            for pub, msg in self.messages:
+                pub.publish(msg)
+        return True
+
+    def store(self, stamp_ns: int, messages: list[tuple[Any, Any]]) -> None:
+        self.stamp_ns, self.messages = stamp_ns, messages
+        for pub, msg in messages:
+            pub.publish(msg)
+
+
+def mission_only(mission_file: str):
+    """Load and validate the mission (no components), with the same clear errors as :func:`mission_pieces`."""
+    if not mission_file:
+        raise NodeConfigError("parameter 'mission_file' is empty: give the mission YAML "
+                              "(the same file as `bb2-sim mission`), e.g. -p mission_file:=missions/canyon.yaml")
+    from bb2_tools.mission import load_mission
+
+    try:
+        return load_mission(mission_file)
+    except (ValueError, KeyError, TypeError, OSError) as exc:
+        raise NodeConfigError(f"mission file {mission_file!r}: {exc}") from None
+
+
+def components_for(mission):
+    """:func:`bb2_tools.mission.mission_components` of a loaded mission, with clear errors."""
+    from bb2_tools.mission import mission_components
+
+    try:
+        return mission_components(mission)
+    except (ValueError, KeyError, TypeError, OSError) as exc:
+        raise NodeConfigError(f"mission {getattr(mission, 'name', '?')!r}: {exc}") from None
+
+
+def require_rate_stack(stack) -> None:
+    """The node graph splits the rate stack (rate_pf_3d); the LOS stack runs in-process only."""
+    from bb2_control.stacks import RatePathFollowingStack
+
+    if not isinstance(stack, RatePathFollowingStack):
+        raise NodeConfigError(
+            f"stack {stack.name!r} ({stack.config.get('type')}) is not supported by the node graph: the graph "
+            "carries q_c/r_c rate commands (stack type rate_pf_3d, e.g. rate_2022); fly it with `bb2-sim mission`")
+
+
+STATE_SOURCES = ("native", "odometry")
+
+
+def subscribe_state(node, source: str, callback: Callable[[Any, int], None]):
+    """Subscribe to the vehicle state: ``native`` = ``/bb2/state_native`` (exact, reliable; the lockstep
+    trigger) or ``odometry`` = ``/bb2/odom`` (REP-103, sensor QoS, quaternion -> Euler rounding; for
+    external tools / HIL).  ``callback(state: VehicleState, stamp_ns)``."""
+    from bb2_msgs_py import conversions as cv
+    from bb2_msgs_py.contract import message_class, qos_profile
+
+    require_choice("state_source", source, STATE_SOURCES)
+    if source == "native":
+        def on_native(msg):
+            try:
+                s = cv.state_native_from_message(msg)
+            except cv.ConversionError as exc:
+                node.get_logger().warning(f"ignored /bb2/state_native: {exc}", throttle_duration_sec=2.0)
+                return
+            callback(s, cv.seconds_to_ns(s.t))
+        return node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
+                                        on_native, qos_profile("/bb2/state_native"))
+
+    def on_odom(msg):
+        try:
+            s = cv.odometry_to_state(msg)
+        except cv.ConversionError as exc:
+            node.get_logger().warning(f"ignored /bb2/odom: {exc}", throttle_duration_sec=2.0)
+            return
+        callback(s, cv.stamp_to_ns(msg.header.stamp))
+    return node.create_subscription(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", on_odom,
+                                    qos_profile("/bb2/odom"))
+
+
+def time_msg(stamp_ns: int):
+    """``builtin_interfaces/Time`` of integer nanoseconds (exact, no float round trip)."""
+    from builtin_interfaces.msg import Time
+
+    return Time(sec=int(stamp_ns) // 1_000_000_000, nanosec=int(stamp_ns) % 1_000_000_000)
