@@ -1,0 +1,354 @@
+"""bb2-launch: process supervision with real processes and real DDS on an isolated domain.
+
+The supervised nodes are small throwaway rclpy scripts written into tmp_path (so these tests do
+not depend on the BB2 nodes); a driver script runs :func:`bb2_tools.launcher.run_graph` exactly
+as ``bb2-launch`` does, in its own process, so signals reach it as they would from a terminal.
+"""
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from bb2_tools import launcher as L
+
+REPO = Path(__file__).resolve().parents[2]
+
+FAKE_NODE = r'''
+"""Throwaway rclpy node: ticks at 50 Hz, optionally publishes /clock and mission progress,
+optionally crashes; writes <name>.pid / .attempts / .clean into --dir."""
+import argparse, os, time
+from pathlib import Path
+import rclpy
+from rclpy.executors import ExternalShutdownException
+
+p = argparse.ArgumentParser()
+p.add_argument("--name", required=True)
+p.add_argument("--dir", type=Path, required=True)
+p.add_argument("--clock", action="store_true")
+p.add_argument("--progress-s", type=float, default=0.0)
+p.add_argument("--crash-after", type=float, default=0.0)
+p.add_argument("--crash-attempts", type=int, default=1)
+p.add_argument("--exit-code", type=int, default=3)
+a, _ = p.parse_known_args()
+attempts = a.dir / f"{a.name}.attempts"
+attempt = int(attempts.read_text()) if attempts.exists() else 0
+attempts.write_text(str(attempt + 1))
+rclpy.init()
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64
+from bb2_msgs_py.contract import qos_profile
+node = rclpy.create_node(f"fake_{a.name}")
+clock = node.create_publisher(Clock, "/clock", qos_profile("/clock")) if a.clock else None
+prog = (node.create_publisher(Float64, "/bb2/mission/progress", qos_profile("/bb2/mission/progress"))
+        if a.progress_s else None)
+t0 = time.monotonic()
+ticks = 0
+def tick():
+    global ticks
+    ticks += 1
+    el = time.monotonic() - t0
+    if ticks % 10 == 0:
+        print(f"fake {a.name}: tick {ticks} attempt {attempt}", flush=True)
+    if clock:
+        m = Clock(); m.clock.sec = int(el * 10); m.clock.nanosec = int((el * 10 % 1) * 1e9)
+        clock.publish(m)
+    if prog:
+        prog.publish(Float64(data=min(1.0, el / a.progress_s)))
+    if a.crash_after and el > a.crash_after and attempt < a.crash_attempts:
+        print(f"fake {a.name}: crashing with {a.exit_code}", flush=True)
+        os._exit(a.exit_code)
+node.create_timer(0.02, tick)
+(a.dir / f"{a.name}.pid").write_text(str(os.getpid()))
+print(f"fake {a.name}: up", flush=True)
+try:
+    rclpy.spin(node)
+except (KeyboardInterrupt, ExternalShutdownException):
+    pass
+(a.dir / f"{a.name}.clean").write_text("clean")
+print(f"fake {a.name}: clean shutdown", flush=True)
+'''
+
+DRIVER = r'''
+"""Runs bb2_tools.launcher.run_graph on the graph described by a JSON file (as bb2-launch does)."""
+import json, sys
+from pathlib import Path
+from bb2_tools.launcher import GraphMonitor, ProcessSpec, RestartPolicy, Supervisor, run_graph
+
+cfg = json.loads(Path(sys.argv[1]).read_text())
+mon = GraphMonitor(cfg["domain"])
+specs = []
+for s in cfg["nodes"]:
+    ready = None
+    if s.get("ready_node"):
+        ready = (lambda n=s["ready_node"], t=s["ready_topics"]: mon.subscribed(n, t))
+    specs.append(ProcessSpec(s["name"], s["cmd"], RestartPolicy(*s.get("policy", ["stop"])),
+                             stop_stage=s.get("stage", 0), ready=ready, sigint_grace_s=s.get("grace", 10.0)))
+sup = Supervisor(specs, cfg["logs"], restart_delay_s=0.2)
+try:
+    res = run_graph(sup, mon, first=cfg.get("first", []), timeout_s=cfg.get("timeout"), status_period_s=1.0)
+finally:
+    sup.stop(hurry=True)
+    mon.close()
+print("RESULT " + json.dumps({"code": res.exit_code, "reason": res.reason,
+      "exits": [[e.name, e.returncode, e.action, e.attempt] for e in res.exits],
+      "sim_time": res.sim_time_s, "progress": res.progress}), flush=True)
+sys.exit(res.exit_code)
+'''
+
+
+# ------------------------------------------------------------------------ fast unit tests (no DDS)
+def test_restart_policies_parse_and_reject_bad_input():
+    nodes = ["simulator", "recorder", "mixer"]
+    pol = L.parse_restart_policies(["simulator=stop,recorder=restart:5", "mixer=ignore"], nodes)
+    assert pol["recorder"] == L.RestartPolicy("restart", 5)
+    assert pol["simulator"].action == "stop" and pol["mixer"].action == "ignore"
+    assert L.parse_restart_policies(["all=restart"], nodes, default_max=2)["mixer"] == L.RestartPolicy("restart", 2)
+    for bad in ("simulator", "bogus=stop", "mixer=explode", "mixer=ignore:3", "mixer=restart:x"):
+        with pytest.raises(L.LaunchError):
+            L.parse_restart_policies([bad], nodes)
+
+
+def test_python_runner_builds_entry_point_commands():
+    for node in L.GRAPH_NODES:
+        cmd = L.node_command(node, "python")
+        assert cmd[0] == sys.executable and cmd[1] == "-c"
+        module, func = node.entry_point.split(":")
+        assert f"from {module} import {func}" in cmd[2]
+    with pytest.raises(L.LaunchError):
+        L.node_command(L.GRAPH_NODES[0], "nonsense")
+
+
+def test_graph_specs_pass_mission_mode_params_and_sim_time(tmp_path):
+    mission, params, run = tmp_path / "m.yaml", tmp_path / "p.yaml", tmp_path / "bags" / "run"
+    specs = L.graph_specs(mission, run, mode="realtime", params=params, runner="python",
+                          policies={"recorder": L.RestartPolicy("restart", 2)})
+    names = [s.name for s in specs]
+    assert names[0] == "recorder" and names[-1] == "simulator"
+    assert set(names) == {n.name for n in L.GRAPH_NODES}
+    by = {s.name: s for s in specs}
+    sim = by["simulator"].argv(0)
+    assert sim[sim.index("--ros-args") + 1:] == ["-p", f"mission_file:={mission}", "-p",
+                                                 "time_mode:=realtime", "--params-file", str(params)]
+    assert by["simulator"].finishes_graph
+    for n in ("planner", "path_following", "l1_autopilot", "mixer"):
+        assert "use_sim_time:=true" in by[n].argv(0) and f"mission_file:={mission}" in by[n].argv(0)
+    rec = by["recorder"]
+    assert rec.stop_stage > max(s.stop_stage for s in specs if s.name != "recorder")
+    assert rec.argv(0)[rec.argv(0).index("--out") + 1] == str(run)
+    assert rec.argv(1)[rec.argv(1).index("--out") + 1] == str(run.with_name("run_r1"))  # never overwrite
+    assert rec.policy == L.RestartPolicy("restart", 2)
+    assert "recorder" not in [s.name for s in L.graph_specs(mission, run, record=False, runner="python")]
+
+
+def test_bad_input_exits_2_with_one_clear_message(tmp_path, capsys):
+    assert L.main([str(tmp_path / "missing.yaml")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("a: [1, 2\n")
+    assert L.main([str(bad)]) == 2
+    assert "not valid YAML" in capsys.readouterr().err
+    good = tmp_path / "m.yaml"
+    good.write_text("name: x\n")
+    params = tmp_path / "p.yaml"
+    params.write_text("simulator:\n  rate_hz: 100\n")
+    assert L.main([str(good), "--params", str(params)]) == 2
+    assert "ros__parameters" in capsys.readouterr().err
+    assert L.main([str(good), "--restart", "nosuchnode=stop"]) == 2
+    assert "unknown node" in capsys.readouterr().err
+    assert L.main([str(good), "--domain-id", "999"]) == 2
+    assert "--domain-id" in capsys.readouterr().err
+    assert L.main([str(good)]) == 2  # a mission without a path: the mission loader's own message
+    assert str(good) in capsys.readouterr().err
+
+
+def test_format_status_and_exit_causes():
+    line = L.format_status(12.5, 0.25, 31.0, 5, 6, 3.0)
+    assert "12.50 s" in line and "25.0 %" in line and "31.0x" in line and "5/6" in line
+    assert "--" in L.format_status(None, None, None, 0, 6, 0.0)
+    assert L.exit_cause(-9) == "killed by SIGKILL" and L.exit_cause(3) == "exit code 3"
+
+
+def test_supervisor_without_dds_reports_restarts_and_failure(tmp_path):
+    """Plain processes: a crashing one is restarted up to N times, then stops the rest."""
+    crash = [sys.executable, "-c", "import sys; print('boom line'); sys.exit(4)"]
+    sleeper = [sys.executable, "-c", "import time; print('sleeping', flush=True); time.sleep(60)"]
+    specs = [L.ProcessSpec("sleeper", sleeper),
+             L.ProcessSpec("crash", crash, L.RestartPolicy("restart", 2))]
+    t0 = time.monotonic()
+    with L.Supervisor(specs, tmp_path / "logs", restart_delay_s=0.05) as sup:
+        sup.start()
+        sleeper_pid = sup.pid("sleeper")
+        while not sup.done and time.monotonic() - t0 < 20:
+            sup.poll()
+            time.sleep(0.02)
+        assert [e.action for e in sup.exits if e.name == "crash"] == ["restart", "restart", "stop"]
+        assert sup.failure.name == "crash" and sup.failure.returncode == 4 and sup.failure.attempt == 2
+        assert "boom line" in sup.failure.last_lines and "exit code 4" in sup.failure.report()
+    assert time.monotonic() - t0 < 20
+    assert not _alive(sleeper_pid)
+    assert (tmp_path / "logs" / "crash.log").read_text().splitlines().count("boom line") == 3
+
+
+# ------------------------------------------------------------------------ real DDS
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:  # a zombie waiting for its parent is not alive
+        return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.fixture
+def graph(tmp_path):
+    pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
+    (tmp_path / "fake_node.py").write_text(FAKE_NODE)
+    (tmp_path / "drive.py").write_text(DRIVER)
+    domain = random.randint(150, 230)
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain)
+    env["AMENT_PREFIX_PATH"] = env.get("AMENT_PREFIX_PATH") or sys.prefix
+    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+    env["PYTHONUNBUFFERED"] = "1"
+
+    def node(name: str, *extra: str, **kw) -> dict:
+        return {"name": name, "cmd": [sys.executable, str(tmp_path / "fake_node.py"), "--name", name,
+                                      "--dir", str(tmp_path), *extra], **kw}
+
+    def start(nodes: list[dict], **cfg) -> subprocess.Popen:
+        c = {"domain": domain, "logs": str(tmp_path / "logs"), "nodes": nodes, **cfg}
+        (tmp_path / "cfg.json").write_text(json.dumps(c))
+        return subprocess.Popen([sys.executable, str(tmp_path / "drive.py"), str(tmp_path / "cfg.json")],
+                                cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+
+    def wait_for(path: Path, timeout: float = 30.0) -> None:
+        t0 = time.monotonic()
+        while not path.exists():
+            assert time.monotonic() - t0 < timeout, f"{path} never appeared"
+            time.sleep(0.05)
+
+    procs: list[subprocess.Popen] = []
+
+    class G:
+        dir = tmp_path
+
+        @staticmethod
+        def run(nodes, **cfg):
+            p = start(nodes, **cfg)
+            procs.append(p)
+            return p
+
+    G.node, G.wait_for, G.domain = staticmethod(node), staticmethod(wait_for), domain
+    yield G
+    for p in procs:  # never leave a driver behind, even when a test fails
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+
+
+def _result(stdout: str) -> dict:
+    line = [x for x in stdout.splitlines() if x.startswith("RESULT ")]
+    assert line, f"driver printed no result: {stdout!r}"
+    return json.loads(line[-1][len("RESULT "):])
+
+
+def _wait_for_line(p: subprocess.Popen, pred, timeout: float = 30.0) -> str:
+    """Read the driver's stderr until a line satisfies ``pred``; return what was read."""
+    seen, t0 = [], time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        line = p.stderr.readline()
+        if not line:
+            break
+        seen.append(line)
+        if pred(line):
+            return "".join(seen)
+    raise AssertionError("expected launcher output never came: " + "".join(seen))
+
+
+def _pids(g, names) -> dict[str, int]:
+    for n in names:
+        g.wait_for(g.dir / f"{n}.pid")
+    return {n: int((g.dir / f"{n}.pid").read_text()) for n in names}
+
+
+@pytest.mark.ros
+def test_killed_node_is_reported_and_graph_stops_nonzero_without_hanging(graph):
+    p = graph.run([graph.node("a", "--clock"), graph.node("b"), graph.node("c")])
+    pids = _pids(graph, "abc")
+    time.sleep(1.5)  # a few log lines from b
+    os.kill(pids["b"], signal.SIGKILL)
+    t_kill = time.monotonic()
+    out, err = p.communicate(timeout=40)
+    assert time.monotonic() - t_kill < 25, "the launcher took too long to stop the graph"
+    assert p.returncode == 1
+    res = _result(out)
+    assert res["reason"] == "node 'b' failed (killed by SIGKILL)"
+    assert "node 'b' ended (killed by SIGKILL)" in err
+    assert "fake b: tick" in err.split("node 'b' ended")[1]  # its last log lines
+    assert str(graph.dir / "logs" / "b.log") in err
+    assert {e[0]: e[2] for e in res["exits"]} == {"b": "stop", "a": "shutdown", "c": "shutdown"}
+    assert (graph.dir / "a.clean").exists() and (graph.dir / "c.clean").exists()
+    assert not any(_alive(pids[n]) for n in "abc")
+    assert "fake b: up" in (graph.dir / "logs" / "b.log").read_text()
+
+
+@pytest.mark.ros
+def test_sigint_stops_everything_cleanly_recorder_last(graph):
+    from bb2_tools.bagfile import BagReader
+
+    bag = graph.dir / "bag"
+    rec = {"name": "recorder", "cmd": [sys.executable, "-m", "bb2_tools.recorder", "--out", str(bag),
+                                       "--topics", "/clock", "--use-sim-time"],
+           "stage": 1, "ready_node": "bb2_recorder", "ready_topics": ["/clock"], "grace": 20.0}
+    p = graph.run([rec, graph.node("a", "--clock"), graph.node("b")], first=["recorder"])
+    pids = _pids(graph, "ab")
+    seen = _wait_for_line(p, lambda line: "| progress" in line and "sim --" not in line)
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=40)
+    err = seen + err
+    assert p.returncode == 130, err
+    res = _result(out)
+    assert res["reason"] == "interrupted (SIGINT)"
+    assert {e[0]: (e[1], e[2]) for e in res["exits"]} == {
+        "a": (0, "shutdown"), "b": (0, "shutdown"), "recorder": (0, "shutdown")}
+    assert [e[0] for e in res["exits"]][-1] == "recorder"  # stopped last
+    assert (graph.dir / "a.clean").exists() and (graph.dir / "b.clean").exists()
+    assert not any(_alive(pid) for pid in pids.values())
+    assert res["sim_time"] is not None and res["sim_time"] > 0, err  # the monitor saw /clock
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())  # the recorder finished its bag
+    counts = BagReader(bag).message_counts
+    assert counts.get("/clock", 0) > 10
+    assert meta["rosbag2_bagfile_information"]["message_count"] == sum(counts.values())
+
+
+@pytest.mark.ros
+def test_restart_policy_restarts_a_crashed_node_and_mission_completes(graph):
+    p = graph.run([graph.node("a", "--clock"),
+                   graph.node("b", "--crash-after", "1.0", "--exit-code", "7", policy=["restart", 2]),
+                   graph.node("c", "--progress-s", "6")], timeout=60)
+    out, err = p.communicate(timeout=70)
+    res = _result(out)
+    assert p.returncode == 0, err
+    assert res["reason"] == "mission complete" and res["progress"] >= 1.0
+    b_exits = [e for e in res["exits"] if e[0] == "b"]
+    assert b_exits[0][1:] == [7, "restart", 0]
+    assert b_exits[-1][2] == "shutdown" and b_exits[-1][3] == 1  # the restarted one ran to the end
+    assert (graph.dir / "b.attempts").read_text() == "2"
+    assert "policy 'restart' for 'b'" in err and "exit code 7" in err
+    log = (graph.dir / "logs" / "b.log").read_text()
+    assert "attempt 0:" in log and "attempt 1:" in log and "fake b: crashing with 7" in log
