@@ -68,6 +68,7 @@ class ManeuverSettings:
     sail_planes: str = "zero"
     planes_deg: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
     profile: str = "iowa"
+    propeller: str = "constant"   # constant (the authors' rps, default) | speed-pi (the root model's speed PI)
     doc: str = ""
 
     @property
@@ -129,6 +130,8 @@ def validate(s: ManeuverSettings) -> None:
         raise ManeuverError(f"rps must be >= 0, got {s.rps}")
     if s.vertical not in ("pid", "zigzag", "imposed") or s.horizontal not in ("pd", "zigzag", "rudder", "imposed"):
         raise ManeuverError(f"unknown channel logic vertical={s.vertical!r} horizontal={s.horizontal!r}")
+    if s.propeller not in ("constant", "speed-pi"):
+        raise ManeuverError(f"propeller must be 'constant' or 'speed-pi', got {s.propeller!r}")
     if s.sail_planes not in ("zero", "pid"):
         raise ManeuverError(f"sail planes must be 'pid' or 'zero', got {s.sail_planes!r}")
     if "zigzag" in (s.vertical, s.horizontal) and (s.amplitude_deg <= 0 or s.check_deg <= 0):
@@ -163,10 +166,15 @@ class ManeuverCommander:
         self.autopilot = V12Autopilot(z_ref=s.z_ref, psi_ref=math.radians(s.heading_ref_deg))
         self.mixer = PlaneMixer.from_config()
         self.zigzag = ZigZag(s.amplitude_deg, s.check_deg) if "zigzag" in (s.vertical, s.horizontal) else None
+        self.speed_pi = None
+        if s.propeller == "speed-pi":
+            from .profiles import get_profile
+            from .speed_control import SpeedPI
+            self.speed_pi = SpeedPI(-s.speed_mps, get_profile(s.profile).speed_pi_feedforward)
 
     def step(self, t: float, x: np.ndarray) -> tuple[np.ndarray, float]:
         s = self.s
-        rps = s.rps_command
+        rps = self.speed_pi.step(x[6]) if self.speed_pi else s.rps_command
         if s.vertical == "imposed" and s.horizontal == "imposed":
             return np.array(s.planes_deg, dtype=float), rps
         dv_pid, dh_pd = self.autopilot.step(x[2], x[4], x[5])

@@ -153,3 +153,19 @@ def test_iowa_untouched_by_building_a_corrected_model(iowa):
     before = _forces(iowa, x).copy()
     BB2Model(profile="corrected")
     assert np.array_equal(_forces(BB2Model(), x), before)
+
+
+def test_speed_pi_feedforward_sign():
+    """Q14: as implemented the speed PI's feed-forward is negative, n starts at the 0.01 rps floor and the boat
+    slows down while the integrator winds up; corrected, n starts at U/4 and the speed is held. Both settle at
+    the self-propulsion point n = 1.193 rps at 10 kt (SPEC 16)."""
+    runs = {}
+    for prof in ("iowa", "corrected"):
+        s = maneuver_settings("self-propulsion", propeller="speed-pi", depth=60.0, duration=200.0, profile=prof)
+        runs[prof] = run_maneuver(s, build_model(s)).traj
+    iowa, corr = runs["iowa"], runs["corrected"]
+    assert np.all(iowa["n_rps"][:20] == 0.01) and corr["n_rps"][1] > 1.2
+    assert np.max(iowa["u_m_s"]) > -5.05 and np.max(corr["u_m_s"]) < -5.14
+    for tr in (iowa, corr):
+        assert tr["n_rps"][-1] == pytest.approx(1.193, abs=2e-3)
+        assert tr["u_m_s"][-1] == pytest.approx(-5.1444, abs=1e-3)
