@@ -43,12 +43,19 @@ def declare(node, name: str, default: Any, description: str, *, read_only: bool 
     from rcl_interfaces.msg import ParameterDescriptor
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 
+    is_float = isinstance(default, float)
     try:
-        p = node.declare_parameter(name, default, ParameterDescriptor(description=description,
-                                                                      read_only=read_only))
+        # a float parameter also accepts an integer (`rate_hz: 100` in a params file)
+        p = node.declare_parameter(name, default, ParameterDescriptor(
+            description=description, read_only=read_only, dynamic_typing=is_float))
     except (InvalidParameterTypeException, InvalidParameterValueException, TypeError) as exc:
         raise NodeConfigError(f"parameter {name!r}: {exc}") from None
-    return p.value
+    value = p.value
+    if is_float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise NodeConfigError(f"parameter {name!r} must be a number, got {value!r}")
+        value = float(value)
+    return value
 
 
 def require_choice(name: str, value: str, choices: Iterable[str]) -> str:

@@ -1,0 +1,161 @@
+"""The whole node graph (5 processes, real DDS) in lockstep equals the library mission runner within 1e-9 m.
+
+Mission: the first 20 s of the canyon mission (terrain, so the altimeter is exercised).  Every node is
+started from ``config/bb2_graph.yaml`` plus ``-p mission_file:=...``; the simulator writes its own
+trajectory CSV (every step, %.17g) and the test also compares the odometry it receives.
+"""
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
+
+from bb2_msgs_py import conversions as cv  # noqa: E402
+from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+PARAMS = REPO / "config" / "bb2_graph.yaml"
+CONTROLLERS = ("bb2_planner.nodes.planner", "bb2_control.nodes.path_following",
+               "bb2_control.nodes.l1_autopilot", "bb2_control.nodes.mixer")
+DURATION_S = 20.0
+
+
+def _env(domain_id: int) -> dict[str, str]:
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["AMENT_PREFIX_PATH"] = env.get("AMENT_PREFIX_PATH") or sys.prefix
+    env["RMW_IMPLEMENTATION"] = "rmw_fastrtps_cpp"
+    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+    return env
+
+
+def _spawn(module: str, domain_id: int, *ros_args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", module, "--ros-args", *ros_args], cwd=REPO,
+                            env=_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+class Listener:
+    """Odometry, native states and status of the graph, received in this process."""
+
+    def __init__(self, domain_id: int):
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, domain_id=domain_id)
+        self.node = rclpy.create_node("lockstep_test", context=self.ctx)
+        self.odom: list = []
+        self.states: dict[float, np.ndarray] = {}
+        self.state_wall: list[tuple[float, float]] = []
+        self.status_names: set[str] = set()
+        deep_sensor = QoSProfile(depth=10000, reliability=ReliabilityPolicy.BEST_EFFORT)
+        deep_reliable = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
+        self.node.create_subscription(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", self.odom.append,
+                                      deep_sensor)
+        self.node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
+                                      self._on_state, deep_reliable)
+        self.node.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
+                                      lambda m: self.status_names.update(s.name for s in m.status),
+                                      qos_profile("/bb2/status"))
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _on_state(self, msg) -> None:
+        s = cv.state_native_from_message(msg)
+        if s.t not in self.states:
+            self.state_wall.append((s.t, time.monotonic()))
+        self.states[s.t] = s.as_vector()
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def close(self) -> None:
+        self._stop.set()
+        self.thread.join(2)
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.ctx)
+
+
+def _library_trajectory(mission_file: Path) -> np.ndarray:
+    from bb2_tools.mission import MissionRunner, load_mission
+
+    runner = MissionRunner(load_mission(mission_file))
+    xs = [np.r_[runner.sim.t, runner.sim.x]]
+    while not runner.done:
+        runner.step()
+        xs.append(np.r_[runner.sim.t, runner.sim.x])
+    return np.array(xs)
+
+
+def test_graph_lockstep_equals_library_runner(tmp_path):
+    domain_id = random.randint(100, 230)
+    mission = tmp_path / "canyon_short.yaml"
+    mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nduration_s: {DURATION_S}\n")
+    csv_file = tmp_path / "traj.csv"
+    common = ["--params-file", str(PARAMS), "-p", f"mission_file:={mission}", "-p", "status_period_s:=0.5"]
+    listener = Listener(domain_id)
+    procs = {m: _spawn(m, domain_id, *common) for m in CONTROLLERS}
+    sim = None
+    try:
+        overrides = tmp_path / "overrides.yaml"  # a second params file beats the node keys of the first
+        overrides.write_text(f"simulator:\n  ros__parameters:\n    trajectory_csv: {csv_file}\n"
+                             f"    exit_at_end: true\n")
+        sim = _spawn("bb2_sim.nodes.simulator", domain_id, *common, "--params-file", str(overrides))
+        ref = _library_trajectory(mission)  # computed while the graph runs
+        out, _ = sim.communicate(timeout=50)
+        assert sim.returncode == 0, out
+        time.sleep(0.6)  # last status round
+        for m, p in procs.items():
+            assert p.poll() is None, f"{m} died: {p.communicate()[0]}"
+    finally:
+        for p in procs.values():
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        codes = {m: p.wait(10) for m, p in procs.items()}
+        if sim is not None and sim.poll() is None:
+            sim.kill()
+        listener.close()
+    assert codes == {m: 0 for m in CONTROLLERS}, codes  # clean SIGINT shutdown
+
+    # every node was up and reporting
+    assert {"bb2/simulator", "bb2/planner", "bb2/path_following", "bb2/l1_autopilot", "bb2/mixer"} \
+        <= listener.status_names, listener.status_names
+
+    # the simulator's own trajectory: every step, equal to the library runner
+    traj = np.loadtxt(csv_file, delimiter=",", skiprows=1)
+    assert traj.shape == ref.shape == (int(round(DURATION_S / 0.05)) + 1, 13)
+    np.testing.assert_array_equal(traj[:, 0], ref[:, 0])
+    assert np.max(np.abs(traj[:, 1:4] - ref[:, 1:4])) <= 1e-9
+    assert np.max(np.abs(traj[:, 4:] - ref[:, 4:])) <= 1e-9
+    assert np.ptp(ref[:, 1]) > 50.0  # the vehicle really travelled
+
+    # what the graph published: native states (reliable) all received, odometry (ENU) matches where received
+    assert len(listener.states) == len(ref)
+    got = np.array([np.r_[t, x] for t, x in sorted(listener.states.items())])
+    assert np.max(np.abs(got[:, 1:4] - ref[:, 1:4])) <= 1e-9
+    assert len(listener.odom) >= 0.9 * len(ref)
+    by_t = {round(r[0], 6): r for r in ref}
+    for msg in listener.odom:
+        s = cv.odometry_to_state(msg)
+        r = by_t[round(s.t, 6)]
+        assert np.max(np.abs(s.p_native - r[1:4])) <= 1e-9
+
+    (t0, w0), (t1, w1) = listener.state_wall[1], listener.state_wall[-1]
+    rtf = (t1 - t0) / (w1 - w0)
+    print(f"\nlockstep real-time factor of the graph: {rtf:.1f} (sim s per wall s, {len(ref)} steps)")
+    assert rtf > 1.0
