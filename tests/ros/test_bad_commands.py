@@ -1,0 +1,279 @@
+"""Bad input to the simulator node (its own process, real DDS): NaN/inf, out-of-range, wrong names/frames,
+stale stamps, commands that stop arriving (real-time failsafe), a dead controller in lockstep (timeout),
+and malformed params / mission files (non-zero exit, one clear message)."""
+from __future__ import annotations
+
+import math
+import os
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+pytestmark = pytest.mark.ros
+rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
+
+from bb2_msgs_py import conversions as cv  # noqa: E402
+from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+MISSION = "path: circle_r400\nstack: rate_2022\nduration_s: 300\n"
+PLANE_LIMIT_RAD = math.radians(30.0)
+
+
+def _env(domain_id: int) -> dict[str, str]:
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["AMENT_PREFIX_PATH"] = env.get("AMENT_PREFIX_PATH") or sys.prefix
+    env["RMW_IMPLEMENTATION"] = "rmw_fastrtps_cpp"
+    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+    return env
+
+
+def _spawn(domain_id: int, module: str, *ros_args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", module, "--ros-args", *ros_args], cwd=REPO,
+                            env=_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+class Bench:
+    """The 'autopilot' side: publishes commands, watches state, planes and status of the simulator."""
+
+    def __init__(self, domain_id: int):
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import HistoryPolicy
+
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, domain_id=domain_id)
+        self.node = rclpy.create_node("bench", context=self.ctx)
+        self.lock = threading.Lock()
+        self.states: list = []
+        self.planes: list = []
+        self.status: list[dict[str, str]] = []
+        self.levels: list[int] = []
+
+        def deep(name):
+            q = qos_profile(name)
+            q.history, q.depth = HistoryPolicy.KEEP_LAST, 1000
+            return q
+        self.node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
+                                      self._on_state, deep("/bb2/state_native"))
+        self.node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/state",
+                                      self._on_planes, deep("/bb2/planes/state"))
+        self.node.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
+                                      self._on_status, deep("/bb2/status"))
+        JS = message_class("sensor_msgs/msg/JointState")
+        self.pub_planes = self.node.create_publisher(JS, "/bb2/planes/cmd", qos_profile("/bb2/planes/cmd"))
+        self.pub_prop = self.node.create_publisher(JS, "/bb2/propeller/cmd", qos_profile("/bb2/propeller/cmd"))
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def _on_state(self, m):
+        with self.lock:
+            self.states.append(cv.state_native_from_message(m))
+
+    def _on_planes(self, m):
+        with self.lock:
+            self.planes.append(cv.planes_from_message(m))
+
+    def _on_status(self, m):
+        for st in m.status:
+            if st.name == "bb2/simulator":
+                with self.lock:
+                    self.status.append({kv.key: kv.value for kv in st.values})
+                    self.levels.append(st.level[0] if isinstance(st.level, bytes) else int(st.level))
+
+    def t(self) -> float:
+        with self.lock:
+            return self.states[-1].t if self.states else 0.0
+
+    def last_status(self) -> dict[str, str]:
+        with self.lock:
+            return dict(self.status[-1]) if self.status else {}
+
+    def send(self, planes_rad=None, omega=None, *, t: float | None = None, frame: str = "base_link",
+             names: Any = None) -> None:
+        t = self.t() if t is None else t
+        if planes_rad is not None:
+            m = cv.planes_message(t, np.zeros(5), frame_id=frame)
+            m.position = [float(v) for v in planes_rad]
+            if names is not None:
+                m.name = list(names)
+            self.pub_planes.publish(m)
+        if omega is not None:
+            self.pub_prop.publish(cv.propeller_message(t, omega, frame_id=frame))
+
+    def wait(self, cond, timeout: float, what: str, proc=None) -> None:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if cond():
+                return
+            if proc is not None and proc.poll() is not None:
+                raise AssertionError(f"simulator exited ({proc.returncode}) waiting for {what}: {proc.communicate()[0]}")
+            time.sleep(0.05)
+        raise AssertionError(f"timed out waiting for {what}; last status {self.last_status()}")
+
+    def stream(self, seconds: float, **kw) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.send(**kw)
+            time.sleep(0.04)
+
+    def close(self):
+        self._stop.set()
+        self.thread.join(2)
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.ctx)
+
+
+def _params(tmp_path: Path, **values: Any) -> str:
+    f = tmp_path / "sim_params.yaml"
+    f.write_text(yaml.safe_dump({"simulator": {"ros__parameters": values}}))
+    return str(f)
+
+
+@pytest.fixture
+def bench(tmp_path):
+    domain_id = random.randint(100, 230)
+    mission = tmp_path / "circle.yaml"
+    mission.write_text(MISSION)
+    b = Bench(domain_id)
+    procs: list[subprocess.Popen] = []
+
+    def start(**params) -> subprocess.Popen:
+        p = _spawn(domain_id, "bb2_sim.nodes.simulator", "--params-file",
+                   _params(tmp_path, mission_file=str(mission), **params))
+        procs.append(p)
+        return p
+    yield b, start
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)
+    codes = [p.wait(10) for p in procs]
+    b.close()
+    assert codes == [0] * len(procs)
+
+
+def test_realtime_rejects_clamps_and_fails_safe(bench):
+    b, start = bench
+    sim = start(time_mode="realtime", rate_hz=40, command_timeout_s=0.4, warn_throttle_s=0.3, status_period_s=0.2)
+    b.wait(lambda: b.states and b.node.count_subscribers("/bb2/planes/cmd") > 0, 20, "simulator up", sim)
+    omega = 2 * math.pi * 1.2
+    ok = np.radians([2.0, 2.0, -2.0, -2.0, 1.0])
+
+    b.stream(1.0, planes_rad=ok, omega=omega)
+    b.wait(lambda: b.last_status().get("failsafe") == "false", 5, "failsafe released by valid commands", sim)
+
+    # NaN / inf: rejected, never integrated (the valid commands keep flowing)
+    b.stream(0.6, planes_rad=[math.nan, 0, 0, 0, 0], omega=math.inf)
+    b.stream(0.3, planes_rad=ok, omega=omega)
+    # out of range: clamped to the ROM's plane limit
+    b.stream(0.6, planes_rad=[1.0, -1.0, 1.0, -1.0, 1.0], omega=omega)
+    # wrong joint names / sizes, wrong frame, stale stamps: rejected
+    b.send(planes_rad=ok, names=["a", "b", "c", "d", "e"])
+    b.send(planes_rad=ok[:4], names=["delta1", "delta2", "delta3", "delta4"])
+    b.send(planes_rad=ok, omega=omega, frame="map")
+    b.send(planes_rad=ok, omega=omega, t=max(b.t() - 5.0, 0.0))
+    b.stream(0.5, planes_rad=ok, omega=omega)
+    b.wait(lambda: int(b.last_status().get("rejected_stale", 0)) >= 2, 5, "counters", sim)
+    st = b.last_status()
+    assert int(st["rejected_nonfinite"]) >= 10
+    assert int(st["clamped"]) >= 5
+    assert int(st["rejected_names"]) >= 2
+    assert int(st["rejected_frame"]) >= 2
+    assert st["failsafe"] == "false"
+    with b.lock:
+        states, planes = list(b.states), np.array(b.planes)
+    assert all(np.all(np.isfinite(s.as_vector())) for s in states)
+    assert np.max(np.abs(planes)) <= PLANE_LIMIT_RAD + 1e-12
+    assert np.max(np.abs(planes)) > math.radians(4.0)  # the clamped command was applied (rate-limited)
+
+    # commands stop: failsafe after command_timeout_s, planes driven to neutral, reported in the status
+    t_stop = b.t()
+    b.wait(lambda: b.last_status().get("failsafe") == "true", 5, "failsafe engaged", sim)
+    st = b.last_status()
+    assert "no valid plane and propeller command" in st["failsafe_reason"]
+    assert "planes neutral" in st["failsafe_reason"] and "propeller held" in st["failsafe_reason"]
+    assert b.levels[-1] == 1  # WARN
+    b.wait(lambda: b.planes and np.max(np.abs(b.planes[-1])) < 1e-12, 10, "neutral planes", sim)
+    assert b.t() > t_stop and np.all(np.isfinite(b.states[-1].as_vector()))
+
+    sim.send_signal(signal.SIGINT)
+    out, _ = sim.communicate(timeout=10)
+    assert sim.returncode == 0
+    for text in ("rejected non-finite plane command", "rejected non-finite propeller command", "clamped",
+                 "rejected plane command", "expected 'base_link'", "rejected stale", "failsafe:"):
+        assert text in out, text
+    assert out.count("rejected non-finite plane command") < int(st["rejected_nonfinite"])  # throttled
+
+
+def test_lockstep_timeout_holds_commands_and_resumes(bench):
+    b, start = bench
+    sim = start(time_mode="lockstep", startup_timeout_s=0.5, lockstep_timeout_s=0.1, status_period_s=0.2)
+    # no controller: every step times out, the simulator keeps going on the safe default and says so
+    b.wait(lambda: int(b.last_status().get("lockstep_timeouts", 0)) >= 3, 20, "lockstep timeouts", sim)
+    st = b.last_status()
+    assert st["failsafe"] == "true" and "lockstep timeout" in st["failsafe_reason"]
+    assert int(st["lockstep_resends"]) >= 1 or int(st["lockstep_timeouts"]) >= 3
+    # now answer each state at once: the simulator steps on the answers (no more timeouts)
+    ok = np.radians([1.0, 1.0, -1.0, -1.0, 0.0])
+    answered: set[float] = set()
+    end = time.monotonic() + 3.0
+    n0 = int(b.last_status()["lockstep_timeouts"])
+    while time.monotonic() < end:
+        t = b.t()
+        if t not in answered:
+            b.send(planes_rad=ok, omega=2 * math.pi, t=t)
+            answered.add(t)
+        time.sleep(0.002)
+    b.wait(lambda: b.last_status().get("failsafe") == "false", 5, "failsafe released", sim)
+    assert len(answered) > 40  # much faster than one step per timeout
+    assert int(b.last_status()["lockstep_timeouts"]) <= n0 + 2
+
+
+@pytest.mark.parametrize("case", ["params_yaml", "params_type", "params_choice", "mission_yaml", "mission_key",
+                                  "mission_missing", "no_mission"])
+def test_malformed_params_or_mission_exit_nonzero(tmp_path, case):
+    domain_id = random.randint(100, 230)
+    good = tmp_path / "good.yaml"
+    good.write_text(MISSION)
+    args: list[str]
+    if case == "params_yaml":
+        f = tmp_path / "p.yaml"
+        f.write_text("simulator:\n  ros__parameters:\n    rate_hz: [1,\n")
+        args, expect = ["--params-file", str(f)], "params file"
+    elif case == "params_type":
+        args, expect = ["--params-file", _params(tmp_path, rate_hz="fast", mission_file=str(good))], "'rate_hz'"
+    elif case == "params_choice":
+        args, expect = ["--params-file", _params(tmp_path, time_mode="sometimes", mission_file=str(good))], \
+            "'time_mode' must be one of"
+    elif case == "mission_yaml":
+        f = tmp_path / "m.yaml"
+        f.write_text("path: [circle\n")
+        args, expect = ["-p", f"mission_file:={f}"], "not valid YAML"
+    elif case == "mission_key":
+        f = tmp_path / "m.yaml"
+        f.write_text(MISSION + "speed_knots: 9\n")
+        args, expect = ["-p", f"mission_file:={f}"], "unknown key(s) ['speed_knots']"
+    elif case == "mission_missing":
+        args, expect = ["-p", f"mission_file:={tmp_path / 'none.yaml'}"], "cannot read mission file"
+    else:
+        args, expect = [], "'mission_file' is empty"
+    p = _spawn(domain_id, "bb2_sim.nodes.simulator", *args)
+    out, _ = p.communicate(timeout=30)
+    assert p.returncode == 2, out
+    assert "simulator: error:" in out and expect in out, out
