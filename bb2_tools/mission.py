@@ -66,7 +66,7 @@ __all__ = [
     "MissionError", "InitialState", "Limits", "Mission", "MissionComponents", "MissionStep", "MissionEvent",
     "MissionSummary", "MissionResult", "MissionRunner", "HullProbes", "MISSION_COLUMNS", "MISSIONS_DIR",
     "load_mission", "mission_from_dict", "mission_components", "stack_overrides", "initial_state", "run_mission",
-    "read_mission_csv", "path_errors_closest",
+    "read_mission_csv", "path_errors_closest", "terrain_elevation",
 ]
 
 MISSIONS_DIR = Path(__file__).resolve().parents[1] / "missions"
@@ -427,6 +427,24 @@ def initial_state(m: Mission) -> np.ndarray:
     return x0
 
 
+def terrain_elevation(terrain: Terrain, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear elevation of ``terrain`` at native (x, y), NaN off the grid.
+
+    The same interpolant as :meth:`Terrain.elevation` (linear on the regular grid), without its
+    per-call overhead and without raising off the grid: the per-tick clearance check uses it.
+    """
+    gx, gy, gz = terrain.x, terrain.y, terrain.z
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    inside = (x >= gx[0]) & (x <= gx[-1]) & (y >= gy[0]) & (y <= gy[-1])
+    i = np.clip(np.searchsorted(gx, x, side="right") - 1, 0, gx.size - 2)
+    j = np.clip(np.searchsorted(gy, y, side="right") - 1, 0, gy.size - 2)
+    fx = (x - gx[i]) / (gx[i + 1] - gx[i])
+    fy = (y - gy[j]) / (gy[j + 1] - gy[j])
+    z = (gz[i, j] * (1 - fx) * (1 - fy) + gz[i + 1, j] * fx * (1 - fy) + gz[i, j + 1] * (1 - fx) * fy
+         + gz[i + 1, j + 1] * fx * fy)
+    return np.where(inside, z, np.nan)
+
+
 class HullProbes:
     """Probe points of the hull (native body frame) for vertical clearance and broaching checks.
 
@@ -618,12 +636,8 @@ class MissionRunner:
     def _clearances(self, x: np.ndarray) -> tuple[float, float, float]:
         if self.terrain is None:
             return math.nan, math.nan, math.nan
-        P = self.c.probes.world(x)
-        pts = np.vstack([x[0:3], P])
-        inside = self.terrain.contains(pts)
-        zt = np.full(len(pts), np.nan)
-        if inside.any():
-            zt[inside] = self.terrain.elevation(pts[inside, 0], pts[inside, 1])
+        pts = np.vstack([x[0:3], self.c.probes.world(x)])
+        zt = terrain_elevation(self.terrain, pts[:, 0], pts[:, 1])
         cl = pts[:, 2] - zt
         hull = float(np.nanmin(cl[1:])) if np.isfinite(cl[1:]).any() else math.nan
         return float(zt[0]), float(cl[0]), hull

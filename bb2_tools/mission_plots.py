@@ -92,14 +92,15 @@ def plot_plan_view(traj: Mapping[str, np.ndarray], path_xyz: np.ndarray, file: P
 
 
 def plot_path_errors(traj: Mapping[str, np.ndarray], file: Path, title: str = "",
-                     compare: Mapping[str, np.ndarray] | None = None, compare_label: str = "") -> Path:
+                     compare: Mapping[str, np.ndarray] | None = None, compare_label: str = "",
+                     label: str = "this run") -> Path:
     t = traj["t_s"]
     has_cl = bool(np.isfinite(traj["clearance_m"]).any())
     fig = Figure(figsize=(8.5, 7.5 if has_cl else 5.5))
     axs = fig.subplots(3 if has_cl else 2, 1, sharex=True)
     for ax, col, lab in ((axs[0], "e_vertical_m", "vertical error [m]\n(> 0 above)"),
                          (axs[1], "e_horizontal_m", "horizontal error [m]\n(> 0 left)")):
-        ax.plot(t, traj[col], color="tab:blue", lw=1.2, label="this run")
+        ax.plot(t, traj[col], color="tab:blue", lw=1.2, label=label)
         if compare is not None:
             ax.plot(compare["t_s"], compare[col], color="0.45", ls="--", lw=1.1, label=compare_label)
             ax.legend(fontsize=8)
@@ -164,8 +165,8 @@ def plot_speed_depth_fpa(traj: Mapping[str, np.ndarray], file: Path, title: str 
 
 
 def plot_mission(traj: Mapping[str, np.ndarray], path_native: Any, out_dir: str | Path, *, terrain: Any = None,
-                 title: str = "", compare: Mapping[str, np.ndarray] | None = None, compare_label: str = ""
-                 ) -> dict[str, Path]:
+                 title: str = "", compare: Mapping[str, np.ndarray] | None = None, compare_label: str = "",
+                 label: str = "this run") -> dict[str, Path]:
     """Write the mission figures (:data:`FIGURES`) as PNGs into ``out_dir``; returns name -> file.
 
     ``path_native`` is a BernsteinPath in the native frame (sampled densely); ``compare`` an optional
@@ -181,7 +182,7 @@ def plot_mission(traj: Mapping[str, np.ndarray], path_native: Any, out_dir: str 
         "track_3d": plot_track_3d(traj, pxyz, out / "track_3d.png", terrain, pre + "path vs track (3-D)"),
         "plan_view": plot_plan_view(traj, pxyz, out / "plan_view.png", terrain, pre + "plan view"),
         "path_errors": plot_path_errors(traj, out / "path_errors.png", pre + "path-following errors",
-                                        compare, compare_label),
+                                        compare, compare_label, label),
         "commands": plot_commands(traj, out / "commands.png", pre + r"$\delta_V$ / $\delta_H$ and plane angles"),
         "speed_depth_fpa": plot_speed_depth_fpa(traj, out / "speed_depth_fpa.png",
                                                 pre + "speed, depth and flight-path angle"),

@@ -185,6 +185,19 @@ def test_path_below_the_terrain_is_rejected():
         mission_from_dict(_canyon_doc(-60.0))
 
 
+def test_fast_terrain_elevation_equals_the_planner_interpolant():
+    from bb2_planner.terrain import synthetic_canyon
+    from bb2_tools.mission import terrain_elevation
+
+    T = synthetic_canyon().terrain
+    rng = np.random.default_rng(1)
+    x = rng.uniform(T.x[0], T.x[-1], 500)
+    y = rng.uniform(T.y[0], T.y[-1], 500)
+    x[:3], y[:3] = [T.x[0], T.x[-1], T.x[5]], [T.y[-1], T.y[0], T.y[7]]   # grid edges and nodes
+    assert np.allclose(terrain_elevation(T, x, y), T.elevation(x, y), rtol=0, atol=1e-9)
+    assert np.isnan(terrain_elevation(T, np.array([T.x[0] - 1.0]), np.array([0.0])))[0]
+
+
 def test_initial_position_below_the_terrain_is_rejected():
     with pytest.raises(MissionError, match="initial position is .* below the terrain"):
         mission_from_dict(_canyon_doc(0.0, initial={"offset_m": [0.0, 0.0, -100.0]}))
