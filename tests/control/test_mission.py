@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -260,3 +259,23 @@ def test_cli_writes_csv_and_figures_and_exit_codes(tmp_path, capsys):
     assert run_mission_cli(argparse.Namespace(file=str(g), out=None, no_adaptation=False, quiet=True)) == 1
     err = capsys.readouterr().err
     assert "grounded at t = 0.00 s" in err and "x = 0.0" in err
+
+
+def test_divergence_stops_and_reports(model):
+    """A ROM step that raises NonFiniteStateError ends the mission as 'diverged' at that tick."""
+    from bb2_sim.integrator import NonFiniteStateError
+
+    runner = MissionRunner(replace(load_mission(MISSIONS_DIR / "circle.yaml"), duration_s=10.0), model)
+    step = runner.sim.step
+
+    def failing(planes, rps, *a):
+        if runner.sim.n == 40:
+            raise NonFiniteStateError(runner.sim.t, np.full(12, np.nan))
+        return step(planes, rps, *a)
+
+    runner.sim.step = failing
+    r = runner.run()
+    ev = r.summary.event
+    assert ev.kind == "diverged" and ev.t == pytest.approx(2.0) and "diverged at t = 2.00 s" in ev.detail
+    assert len(r.traj["t_s"]) == 41 and np.isnan(r.traj["d1_deg"][-1]) and r.summary.end_reason == "diverged"
+    assert np.allclose(ev.p_native, [r.traj["x_m"][-1], r.traj["y_m"][-1], r.traj["z_m"][-1]])
