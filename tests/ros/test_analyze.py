@@ -1,0 +1,325 @@
+"""bb2-analyze on bags built in-process from the library mission runner.
+
+Each test bag holds what the node graph publishes for the same ticks (the contract conversions,
+serialized with rclpy and written with BagWriter as the recorder writes them): the runner's state at
+every tick, the stack's path error / rate / deltaV-deltaH / plane / propeller commands stamped with it,
+the ROM's actual planes after the step, the final state (which the path follower also answers, as in
+the graph), the exact Bernstein path and the path samples.  The analysis must then reproduce the
+runner's own figures.
+"""
+from __future__ import annotations
+
+import base64
+import dataclasses
+import io
+import math
+import re
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
+
+from rclpy.serialization import serialize_message  # noqa: E402
+
+from bb2_msgs_py import conversions as cv  # noqa: E402
+from bb2_msgs_py.contract import topic  # noqa: E402
+from bb2_tools import analyze as an  # noqa: E402
+from bb2_tools.bagfile import BagReader, BagWriter, qos_entry  # noqa: E402
+from bb2_tools.mission import MissionRunner, load_mission, path_errors_closest  # noqa: E402
+from bb2_tools.recorder import tf_from_odometry  # noqa: E402
+
+TWO_PI = 2.0 * math.pi
+
+
+def _qos(name: str) -> list[dict]:
+    q = topic(name).qos_description
+    return [qos_entry(reliability=q.reliability, durability=q.durability, history=q.history, depth=q.depth)]
+
+
+class _Bag:
+    """BagWriter plus serialize_message, topics added on first use (as the recorder does)."""
+
+    def __init__(self, out: Path, custom: dict[str, str], chunk_size: int, topics: set[str] | None):
+        self.w = BagWriter(out, chunk_size=chunk_size, custom_data=custom)
+        self.only = topics
+
+    def put(self, name: str, msg, t: float) -> None:
+        if self.only is not None and name not in self.only:
+            return
+        if name not in self.w.topics:
+            self.w.add_topic(name, topic(name).type, offered_qos=_qos(name))
+        ns = cv.seconds_to_ns(t)
+        self.w.write(name, serialize_message(msg), ns, time.time_ns())
+        if name == "/bb2/odom":
+            if "/tf" not in self.w.topics:
+                self.w.add_topic("/tf", "tf2_msgs/msg/TFMessage", offered_qos=_qos("/tf"))
+            self.w.write_dict("/tf", tf_from_odometry(msg), ns, time.time_ns())
+
+
+def _publish_state(bag: _Bag, state, terrain) -> None:
+    t = state.t
+    bag.put("/clock", cv.clock_message(t), t)
+    bag.put("/bb2/state_native", cv.state_native_message(state), t)
+    bag.put("/bb2/odom", cv.state_to_odometry(state), t)
+    bag.put("/bb2/depth", cv.depth_message(t, state.depth_m), t)
+    if terrain is not None:
+        try:
+            alt = float(terrain.clearance(state.p_native))
+        except ValueError:
+            alt = math.inf
+        bag.put("/bb2/altitude", cv.altitude_message(t, alt), t)
+
+
+def _publish_answers(bag: _Bag, t: float, out) -> None:
+    bag.put("/bb2/guidance/rate_cmd", cv.rate_command_message(t, out.q_c, out.r_c), t)
+    bag.put("/bb2/guidance/path_error", cv.path_error_message(t, [0.0, out.e_horizontal_m, out.e_vertical_m]), t)
+    bag.put("/bb2/autopilot/vh_cmd", cv.vh_message(t, math.radians(out.dV_deg), math.radians(out.dH_deg)), t)
+    bag.put("/bb2/planes/cmd", cv.planes_message(t, np.radians(out.planes_deg)), t)
+    bag.put("/bb2/propeller/cmd", cv.propeller_message(t, out.rps * TWO_PI), t)
+
+
+def write_mission_bag(mission, out: Path, *, custom: dict[str, str] | None = None, chunk_size: int = 64 * 1024,
+                      topics: set[str] | None = None):
+    """Fly ``mission`` with the library runner, writing the graph's messages of every tick; (bag, result)."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    from std_msgs.msg import Header
+
+    runner = MissionRunner(mission)
+    bag = _Bag(out, custom or {"recorder": "tests/ros/test_analyze.py"}, chunk_size, topics)
+    path = mission.path
+    bag.put("/bb2/path/bernstein", cv.bernstein_message(path), 0.0)
+    native = path.to_frame("native") if path.frame != "native" else path
+    bag.put("/bb2/path", cv.path_message(0.0, native.sample(401)[1]), 0.0)
+    rows = []
+    wall0 = time.perf_counter()
+    while not runner.done:
+        st = runner.step()
+        rows.append(st.row)
+        _publish_state(bag, st.state, mission.terrain)
+        _publish_answers(bag, st.state.t, st.output)
+        if st.record is not None:
+            bag.put("/bb2/planes/state", cv.planes_message(st.record.t, np.radians(st.record.act.planes_deg)),
+                    st.record.t)
+            bag.put("/bb2/propeller/state", cv.propeller_message(st.record.t, st.record.act.rps * TWO_PI),
+                    st.record.t)
+    from bb2_sim.state import VehicleState
+
+    final = VehicleState.from_vector(runner.sim.t, runner.sim.x)
+    _publish_state(bag, final, mission.terrain)
+    _publish_answers(bag, final.t, runner.stack.step(final))  # the graph answers the last state too
+    rtf = runner.sim.t / (time.perf_counter() - wall0)
+    status = DiagnosticStatus(name="bb2/simulator", message="finished", values=[
+        KeyValue(key="real_time_factor", value=f"{rtf:.3f}"), KeyValue(key="mission_file", value="")])
+    bag.put("/bb2/status", DiagnosticArray(header=Header(stamp=cv.stamp(final.t)), status=[status]), final.t)
+    bag.w.close()
+    arr = np.array(rows)
+    from bb2_tools.mission import MISSION_COLUMNS
+
+    traj = {c: arr[:, i] for i, c in enumerate(MISSION_COLUMNS)}
+    return out, runner, traj
+
+
+def _short(name: str, seconds: float, **kw):
+    m = load_mission(name)
+    return dataclasses.replace(m, duration_s=seconds, **kw)
+
+
+@pytest.fixture(scope="module")
+def bags(tmp_path_factory):
+    root = tmp_path_factory.mktemp("analyze")
+    circle = _short("circle", 40.0)
+    out = {}
+    out["circle"] = write_mission_bag(circle, root / "circle")
+    out["circle_noad"] = write_mission_bag(circle.with_adaptation(False), root / "circle_noad")
+    out["circle_odom"] = write_mission_bag(circle, root / "circle_odom", topics={
+        "/bb2/odom", "/bb2/path", "/bb2/guidance/path_error", "/bb2/autopilot/vh_cmd", "/clock"})
+    canyon_file = Path(an.__file__).resolve().parents[1] / "missions" / "canyon.yaml"
+    canyon = dataclasses.replace(load_mission(canyon_file), duration_s=15.0)
+    out["canyon"] = write_mission_bag(canyon, root / "canyon", custom={"mission_file": str(canyon_file)})
+    out["root"] = root
+    return out
+
+
+def _summary_of(runner, traj):
+    from bb2_tools.mission import summarize
+
+    return summarize(runner, traj, runner.mission.path.to_frame("native")
+                     if runner.mission.path.frame != "native" else runner.mission.path, 1.0)
+
+
+# ------------------------------------------------------------------------------------------ agreement
+def test_path_errors_equal_runner(bags):
+    bag, runner, traj = bags["circle"]
+    s = _summary_of(runner, traj)
+    a = an.analyze(an.read_bag(bag))
+    f = a.figures
+    assert a.run.state_source == "state_native" and a.run.path_source == "/bb2/path/bernstein"
+    assert int(f["ticks"]) == len(traj["t_s"])  # the final state (answered by the graph) is not a tick
+    for k in ("rms_vertical_m", "max_vertical_m", "rms_horizontal_m", "max_horizontal_m",
+              "rms_vertical_closest_m", "max_vertical_closest_m", "rms_horizontal_closest_m",
+              "max_horizontal_closest_m", "mission_time_s"):
+        assert abs(f[k] - getattr(s, k)) <= 1e-9, (k, f[k], getattr(s, k))
+    np.testing.assert_allclose(a.e_vertical, traj["e_vertical_m"], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(a.run.x[:-1, 0], traj["x_m"])
+    # command statistics from the same samples
+    assert f["dV_max_abs_rad"] == pytest.approx(np.max(np.abs(np.radians(traj["dV_deg"]))), abs=1e-12)
+    assert f["planes_cmd_max_abs_rad"] == pytest.approx(
+        np.max(np.abs(np.radians([traj[f"cmd_d{i}_deg"] for i in range(1, 6)]))), abs=1e-12)
+    assert 0.0 <= f["planes_any_saturated_fraction"] <= 1.0
+    assert math.isfinite(f["real_time_factor"]) and f["real_time_factor"] > 0
+    assert "min_clearance_m" not in f  # circle: no terrain, no altimeter
+
+
+def test_odometry_only_bag(bags):
+    """Without /bb2/state_native and the Bernstein path: odometry back to native, the sampled path."""
+    bag, runner, traj = bags["circle_odom"]
+    a = an.analyze(an.read_bag(bag))
+    assert a.run.state_source == "odometry" and a.run.path_source == "/bb2/path"
+    np.testing.assert_allclose(a.run.x[:-1, 0:3], np.c_[traj["x_m"], traj["y_m"], traj["z_m"]], atol=1e-9)
+    np.testing.assert_allclose(np.degrees(a.run.x[:-1, 5]), traj["psi_deg"], atol=1e-7)
+    s = _summary_of(runner, traj)
+    assert abs(a.figures["rms_vertical_m"] - s.rms_vertical_m) <= 1e-9  # path_error topic: exact
+    # closest point on 401 samples vs the exact path: close, and flagged
+    assert a.figures["rms_horizontal_closest_m"] == pytest.approx(s.rms_horizontal_closest_m, abs=0.05)
+    assert any("odometry" in w for w in a.warnings) and any("resolution-limited" in w for w in a.warnings)
+
+
+def test_ground_clearance_from_mission(bags):
+    bag, runner, traj = bags["canyon"]
+    s = _summary_of(runner, traj)
+    a = an.analyze(an.read_bag(bag))  # the mission comes from the bag's custom_data
+    assert a.mission is not None and a.mission.terrain is not None
+    assert math.isfinite(s.min_clearance_m)
+    assert abs(a.figures["min_clearance_m"] - s.min_clearance_m) <= 1e-9
+    assert abs(a.figures["min_hull_clearance_m"] - s.min_hull_clearance_m) <= 1e-9
+    assert a.figures["min_clearance_t_s"] == s.min_clearance_t_s
+    # without the mission: the altimeter, and a warning that says so
+    run = an.read_bag(bag)
+    run.custom_data.pop("mission_file")
+    b = an.analyze(run)
+    assert "min_clearance_m" not in b.figures and math.isfinite(b.figures["min_altitude_m"])
+    assert any("altimeter" in w for w in b.warnings)
+
+
+# ------------------------------------------------------------------------------------------ CLI
+def test_two_bags_overlay_and_differences(bags, capsys, tmp_path):
+    (b1, r1, t1), (b2, r2, t2) = bags["circle"], bags["circle_noad"]
+    s1, s2 = _summary_of(r1, t1), _summary_of(r2, t2)
+    out = tmp_path / "cmp"
+    assert an.main([str(b1), str(b2), "--out", str(out), "--label", "L1 on", "--label", "L1 off"]) == 0
+    text = capsys.readouterr().out
+    assert "comparison  A = L1 on  B = L1 off" in text
+    line = next(ln for ln in text.splitlines() if ln.strip().startswith("rms_vertical ") and "L1" not in ln
+                and len(ln.split()) >= 5)
+    _, va, vb, d, unit = line.split()
+    assert unit == "m"
+    assert float(va) == pytest.approx(s1.rms_vertical_m, abs=1e-4)
+    assert float(vb) == pytest.approx(s2.rms_vertical_m, abs=1e-4)
+    assert float(d) == pytest.approx(s2.rms_vertical_m - s1.rms_vertical_m, abs=2e-4)
+    assert s1.rms_vertical_m != s2.rms_vertical_m  # the runs really differ
+    html = (out / "report.html").read_text()
+    assert "B - A" in html and html.count("data:image/png;base64,") == 6
+    import json
+
+    doc = json.loads((out / "figures.json").read_text())
+    cmp = {r["figure"]: r for r in doc["comparison"]}
+    assert cmp["max_horizontal_m"]["B_minus_A"] == pytest.approx(s2.max_horizontal_m - s1.max_horizontal_m, abs=1e-9)
+
+
+def test_truncated_bag_read_to_last_chunk(bags, tmp_path, capsys):
+    bag, runner, traj = bags["circle"]
+    mcap = next(bag.glob("*.mcap"))
+    data = mcap.read_bytes()
+    cut = tmp_path / "killed"
+    cut.mkdir()
+    (cut / "killed_0.mcap").write_bytes(data[: len(data) // 2])  # no metadata.yaml: recorder killed
+    run = an.read_bag(cut)
+    assert run.truncated and 10 < len(run.t) < len(traj["t_s"])
+    a = an.analyze(run)
+    k = int(a.figures["ticks"])
+    ev = traj["e_vertical_m"][:k]
+    assert abs(a.figures["rms_vertical_m"] - math.sqrt(np.mean(ev ** 2))) <= 1e-9
+    assert any("truncated" in w for w in a.warnings)
+    assert an.main([str(cut), "--out", str(tmp_path / "rep")]) == 0
+    assert "truncated" in capsys.readouterr().out
+    assert "truncated bag" in (tmp_path / "rep" / "report.html").read_text()
+
+
+def test_bad_inputs_exit_2(bags, tmp_path, capsys):
+    assert an.main([str(tmp_path / "nope")]) == 2
+    assert "no bag at" in capsys.readouterr().err
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"this is not an mcap file at all" * 10)
+    assert an.main([str(junk)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("bb2-analyze: error:") and len(err.strip().splitlines()) == 1
+    with BagWriter(tmp_path / "clock_only") as w:  # a valid bag without any usable topic
+        w.add_topic("/clock", "rosgraph_msgs/msg/Clock")
+        w.write("/clock", serialize_message(cv.clock_message(1.0)), 1_000_000_000)
+    assert an.main([str(tmp_path / "clock_only")]) == 2
+    assert "no usable topics" in capsys.readouterr().err
+    bad_mission = tmp_path / "bad.yaml"
+    bad_mission.write_text("path: circle_r400\nbogus_key: 1\n")
+    assert an.main([str(bags["circle"][0]), "--mission", str(bad_mission), "--no-report"]) == 2
+    assert "bogus_key" in capsys.readouterr().err
+    assert an.main([str(bags["circle"][0])] * 3) == 2
+
+
+# ------------------------------------------------------------------------------------------ HTML in Chromium
+def _png_sizes(html: str) -> list[tuple[int, int]]:
+    import matplotlib.image as mpimg
+
+    sizes = []
+    for b64 in re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html):
+        raw = base64.b64decode(b64, validate=True)
+        assert raw.startswith(b"\x89PNG\r\n\x1a\n")
+        img = mpimg.imread(io.BytesIO(raw), format="png")
+        sizes.append(img.shape[:2])
+    return sizes
+
+
+def test_report_renders_in_chromium(bags, tmp_path):
+    bag = bags["canyon"][0]
+    out = tmp_path / "report"
+    assert an.main([str(bag), "--out", str(out)]) == 0
+    html_file = out / "report.html"
+    html = html_file.read_text()
+    # self-contained: every image decodes, nothing is referenced outside the file
+    sizes = _png_sizes(html)
+    assert len(sizes) == 6 and all(h > 300 and w > 500 for h, w in sizes)
+    refs = re.findall(r'(?:src|href)\s*=\s*"([^"]*)"', html)
+    assert refs and all(r.startswith("data:image/png;base64,") for r in refs), [r[:40] for r in refs]
+    assert "<script" not in html and "url(" not in html
+    chromium = shutil.which("chromium")
+    if chromium is None:
+        pytest.skip("chromium not installed (run tools/install_chromium.sh): screenshot check skipped")
+    shot = tmp_path / "shot.png"
+    proc = subprocess.run(
+        [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         f"--user-data-dir={tmp_path / 'profile'}", "--enable-logging=stderr", "--v=0",
+         f"--screenshot={shot}", "--window-size=1400,2000", html_file.as_uri()],
+        capture_output=True, text=True, timeout=90)
+    assert proc.returncode == 0 and shot.is_file(), proc.stderr[-2000:]
+    console = [ln for ln in proc.stderr.splitlines() if "CONSOLE" in ln or "Uncaught" in ln
+               or "Failed to load resource" in ln or "net::ERR" in ln]
+    assert not console, console
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(shot)[:, :, :3]
+    assert img.shape[0] >= 1900 and img.shape[1] >= 1300
+    px = (img * 255).round().astype(int)
+    non_white = np.mean(np.any(px < 235, axis=2))
+    assert non_white > 0.05, f"screenshot nearly blank ({non_white:.3f} non-white)"
+    colours = len(np.unique(px[::4, ::4].reshape(-1, 3) // 16, axis=0))
+    assert colours > 40, f"only {colours} colour bins: the figures did not render"
+    # the track (tab:blue 31,119,180) and the path (tab:red 214,39,40) of the plots are on screen
+    def near(rgb):
+        return int(np.sum(np.all(np.abs(px - np.array(rgb)) < 30, axis=2)))
+
+    assert near((31, 119, 180)) > 200 and near((214, 39, 40)) > 100
