@@ -252,8 +252,10 @@ class StampedCache:
                 pub.publish(msg)
         return True
 
-    def store(self, stamp_ns: int, messages: list[tuple[Any, Any]]) -> None:
-        self.stamp_ns, self.messages = stamp_ns, messages
+    def store(self, stamp_ns: int, messages: list[tuple[Any, Any]],
+              replay_also: list[tuple[Any, Any]] = ()) -> None:
+        """Publish ``messages`` and keep them (with ``replay_also``, already published) for replays."""
+        self.stamp_ns, self.messages = stamp_ns, list(replay_also) + list(messages)
         for pub, msg in messages:
             pub.publish(msg)
 

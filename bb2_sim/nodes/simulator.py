@@ -357,31 +357,48 @@ class SimulatorShell:
             self._publish_status()
             self.done = self.exit_at_end
             return
+        finished = self.t >= self.duration_s - 1e-9
+        if not finished:
+            self._publish_trigger()  # first: the controllers work on step n+1 while the sensors go out
         t = rec.t
         f_flu = cv.specific_force_flu(state, rec.ev.xdot[6:9], self.g)
         self.pub["/bb2/imu"].publish(cv.imu_message(state, f_flu))
         self.pub["/bb2/planes/state"].publish(cv.planes_message(t, np.radians(rec.act.planes_deg)))
         self.pub["/bb2/propeller/state"].publish(cv.propeller_message(t, rec.act.rps * TWO_PI))
-        if self.t >= self.duration_s - 1e-9:
-            self._publish_state()
+        if finished:
+            self._publish_trigger()
+            self._publish_sensors()
             self.finished = True
             self.node.get_logger().info(f"mission duration reached at t = {self.t:.3f} s")
             self._publish_status()
             self.done = self.exit_at_end
             return
-        self._publish_state()
+        self._publish_sensors()
 
     def _publish_state(self) -> None:
+        self._publish_trigger()
+        self._publish_sensors()
+
+    def _publish_trigger(self) -> None:
+        """/clock and the exact state of the current step (what the controllers answer)."""
+        from bb2_msgs_py import conversions as cv
+        from bb2_sim.state import VehicleState
+
+        state = VehicleState.from_vector(self.sim.t, self.sim.x)
+        if self._csv:
+            self._csv.writerow([repr(float(state.t))] + ["%.17g" % v for v in self.sim.x])
+        self.pub["/clock"].publish(cv.clock_message(state.t))
+        self._state_native_msg = cv.state_native_message(state)
+        self.pub["/bb2/state_native"].publish(self._state_native_msg)
+        self._sent_wall = self._first_sent_wall = time.monotonic()
+
+    def _publish_sensors(self) -> None:
+        """Odometry, depth and altitude of the current step."""
         from bb2_msgs_py import conversions as cv
         from bb2_sim.state import VehicleState
 
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
         t = state.t
-        if self._csv:
-            self._csv.writerow([repr(float(t))] + ["%.17g" % v for v in self.sim.x])
-        self.pub["/clock"].publish(cv.clock_message(t))
-        self._state_native_msg = cv.state_native_message(state)
-        self.pub["/bb2/state_native"].publish(self._state_native_msg)
         self.pub["/bb2/odom"].publish(cv.state_to_odometry(state))
         self.pub["/bb2/depth"].publish(cv.depth_message(t, state.depth_m))
         if self.terrain is not None:
@@ -390,7 +407,6 @@ class SimulatorShell:
             except ValueError:  # off the terrain grid: no bottom known
                 alt = math.inf
             self.pub["/bb2/altitude"].publish(cv.altitude_message(t, alt))
-        self._sent_wall = self._first_sent_wall = time.monotonic()
 
     # ------------------------------------------------------------------------------------ status
     def status_values(self) -> dict[str, str]:
