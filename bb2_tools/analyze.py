@@ -47,7 +47,7 @@ import math
 import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -326,6 +326,7 @@ class Analysis:
     maneuver_figures: Any = None
     maneuver_traj: dict[str, np.ndarray] | None = None
     warnings: list[str] = field(default_factory=list)
+    rtf_source: str = "unknown"             #: where the real-time factor comes from
 
     @property
     def label(self) -> str:
@@ -631,8 +632,7 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
     a = Analysis(run=run, figures=figs, tick=tick, e_vertical=e_v, e_horizontal=e_h,
                  e_vertical_closest=np.asarray(ev_c, float), e_horizontal_closest=np.asarray(eh_c, float),
                  clearance=cl, hull_clearance=hull, terrain_z=zt, mission=mission, maneuver=maneuver,
-                 maneuver_figures=man_figs, maneuver_traj=man_traj, warnings=warnings)
-    a.rtf_source = rtf_source  # type: ignore[attr-defined]
+                 maneuver_figures=man_figs, maneuver_traj=man_traj, warnings=warnings, rtf_source=rtf_source)
     return a
 
 
