@@ -34,7 +34,8 @@ cmd="${1:-}"; shift || true
 case "$cmd" in
   setup) setup ;;
   main)  setup; activate; exec python -m bb2_tools.main_job "$@" ;;
-  test)  setup; activate; exec python -m pytest -q -p no:cacheprovider tests "$@" ;;
+  test)  setup; bash tools/install_chromium.sh >&2 || true; activate
+         exec python -m pytest -q -p no:cacheprovider tests "$@" ;;
   bench) setup; activate; for b in benchmarks/*.py; do echo "== $b"; python "$b"; done ;;
   shell) setup; activate; exec "${SHELL:-bash}" ;;
   *) echo "usage: bash run.sh main|test|setup|bench|shell" >&2; exit 2 ;;
