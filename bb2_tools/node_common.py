@@ -159,8 +159,9 @@ def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str]
     """Init rclpy with ``args`` (``sys.argv`` when None), build ``factory(argv)``, spin until SIGINT/SIGTERM.
 
     ``factory`` returns an object with ``.node`` (an rclpy Node) and optionally ``close()`` and
-    ``done`` (a bool property: stop spinning and exit 0, e.g. the simulator's ``exit_at_end``).
-    Exit status: 0 clean stop, 2 bad params file / parameter / mission, 1 runtime error.
+    ``done`` (a bool: stop spinning, e.g. the simulator's ``exit_at_end``) and ``exit_code`` (default 0).
+    Exit status: 0 clean stop, 2 bad params file / parameter / mission, 1 runtime error (e.g. the
+    simulation diverged).
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -186,6 +187,7 @@ def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str]
         executor.add_node(shell.node)
         while not stop.is_set() and rclpy.ok() and not getattr(shell, "done", False):
             executor.spin_once(timeout_sec=0.1)
+        code = int(getattr(shell, "exit_code", EXIT_OK))
     except Exception as exc:
         _error(name, f"{type(exc).__name__}: {exc}")
         code = EXIT_RUNTIME_ERROR

@@ -15,7 +15,8 @@ Parameters (``config/bb2_graph.yaml`` lists them all with their defaults):
                        valid command (the mission's nominal speed command if none ever arrived).
 ``max_command_age_s``  a command whose stamp is older than sim time minus this is rejected (stale).
 ``duration_s``         stop stepping at this sim time (< 0: the mission's duration, none = run on).
-``exit_at_end``        exit 0 when the duration is reached (else stay up, status ``finished``).
+``exit_at_end``        exit 0 when the duration is reached (else stay up, status ``finished``); a diverged
+                       simulation then exits 1 (status ``diverged``, ``error``).
 ``trajectory_csv``     if set, every state ``t, x12`` (native, ``%.17g``) is written to this CSV.
 ``status_period_s``    wall period of ``/bb2/status``.
 ``warn_throttle_s``    at most one warning of a kind per this many wall seconds.
@@ -143,6 +144,7 @@ class SimulatorShell:
         self.finished = False
         self.diverged = ""
         self.done = False
+        self.exit_code = 0
         self._t_start_wall = time.monotonic()
         self._steps_at_status, self._wall_at_status = 0, self._t_start_wall
         self._rate_measured = 0.0
@@ -353,6 +355,7 @@ class SimulatorShell:
             rec = self.sim.step(planes_deg, rps)
         except (NonFiniteStateError, ValueError) as exc:
             self.diverged = str(exc)
+            self.exit_code = 1
             self.node.get_logger().error(f"simulation stopped: {exc}")
             self._publish_status()
             self.done = self.exit_at_end
