@@ -10,6 +10,20 @@ the centre of gravity.  The marine variants ``map_ned`` (NED) and ``base_link_fr
 as an option for consumers that want them (see :mod:`bb2_sim.frames` for the math).
 
 Time stamps: every stamped message carries the simulation time (``/clock`` with use_sim_time).
+
+Lockstep handshake (simulator ``time_mode: lockstep``): for step n the simulator publishes ``/clock`` and
+``/bb2/state_native`` (reliable) at t_n; path_following answers ``/bb2/guidance/rate_cmd`` stamped t_n;
+l1_autopilot pairs state and rate command by stamp and answers ``/bb2/autopilot/vh_cmd`` and
+``/bb2/propeller/cmd`` stamped t_n; the mixer answers ``/bb2/planes/cmd`` stamped t_n; the simulator
+integrates once it holds both commands stamped t_n.  Every topic of the handshake is reliable, so no
+sample can be lost to a slow reader (best-effort ``/bb2/odom`` is not part of it); an unanswered state is
+re-sent and each stage replays its cached answer for a stamp it has already answered (never stepping its
+controller twice); after ``lockstep_timeout_s`` the simulator steps on held commands and says so in
+``/bb2/status``.  ``/bb2/state_native`` carries the ROM state in float64 as it is, so the controllers see
+exactly the numbers the library runner's stack sees (no quaternion -> Euler rounding).
+
+Remapping is the standard ROS 2 one (``--ros-args -r /bb2/odom:=/other``); a rule that names no topic of a
+node is reported by the node (an error with its parameter ``strict_remaps: true``).
 """
 from __future__ import annotations
 

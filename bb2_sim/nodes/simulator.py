@@ -7,8 +7,9 @@ Parameters (``config/bb2_graph.yaml`` lists them all with their defaults):
 ``rate_hz``            real time: steps per wall second (1/Ts = 20 is real time; 100 runs 5x faster).
 ``lockstep_timeout_s`` lockstep: wall time to wait for the answer of a step before holding the last
                        valid commands (or the safe default) and stepping anyway (status + warning).
-``lockstep_retry_s``   lockstep: re-send the current ``/bb2/state_native`` after this wall time without an
-                       answer (controllers replay their cached answer; covers discovery at start-up).
+``lockstep_retry_s``   lockstep: re-send the current ``/bb2/state_native`` (and ``/bb2/odom``) after this wall
+                       time without an answer (controllers replay their cached answer, never step twice;
+                       covers discovery at start-up and a best-effort odometry sample lost under load).
 ``startup_timeout_s``  lockstep: the timeout of the very first step (nodes still starting).
 ``command_timeout_s``  real time: a command older than this (wall time since it arrived), or none at all,
                        engages the failsafe: planes commanded to neutral (0 rad), propeller held at the last
@@ -145,6 +146,7 @@ class SimulatorShell:
         self.diverged = ""
         self.done = False
         self.exit_code = 0
+        self._odom_msg = None
         self._t_start_wall = time.monotonic()
         self._steps_at_status, self._wall_at_status = 0, self._t_start_wall
         self._rate_measured = 0.0
@@ -289,6 +291,8 @@ class SimulatorShell:
         elif now - self._sent_wall > self.lockstep_retry_s:
             self.counters["lockstep_resends"] += 1
             self.pub["/bb2/state_native"].publish(self._state_native_msg)
+            if self._odom_msg is not None and self._odom_msg.header.stamp == self._state_stamp:
+                self.pub["/bb2/odom"].publish(self._odom_msg)  # for controllers on state_source odometry
             self._sent_wall = now
 
     def _held_commands(self, now: float, *, lockstep: bool) -> tuple[np.ndarray, float, str]:
@@ -392,6 +396,7 @@ class SimulatorShell:
             self._csv.writerow([repr(float(state.t))] + ["%.17g" % v for v in self.sim.x])
         self.pub["/clock"].publish(cv.clock_message(state.t))
         self._state_native_msg = cv.state_native_message(state)
+        self._state_stamp = cv.stamp(state.t)
         self.pub["/bb2/state_native"].publish(self._state_native_msg)
         self._sent_wall = self._first_sent_wall = time.monotonic()
 
@@ -402,7 +407,8 @@ class SimulatorShell:
 
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
         t = state.t
-        self.pub["/bb2/odom"].publish(cv.state_to_odometry(state))
+        self._odom_msg = cv.state_to_odometry(state)
+        self.pub["/bb2/odom"].publish(self._odom_msg)
         self.pub["/bb2/depth"].publish(cv.depth_message(t, state.depth_m))
         if self.terrain is not None:
             try:
