@@ -1,14 +1,17 @@
 """bb2-launch: fly a mission through the BB2 ROS 2 node graph, one process per node.
 
 The launcher starts the recorder first and waits until it is subscribed to every contract topic,
-then the planner, path following, L1 autopilot, mixer and simulator, each in its own process and
-process group, on an isolated ``ROS_DOMAIN_ID`` (a random free one unless ``--domain-id``).  A
+then (lockstep) the simulator, which publishes the state at t = 0 and waits for the controllers, and
+once the simulator's publishers have been seen for a second, the planner, path following, L1
+autopilot and mixer (in real time the simulator starts last); each in its own process and process
+group, on an isolated ``ROS_DOMAIN_ID`` (a random free one unless ``--domain-id``).  A
 small rclpy monitor node inside the launcher shows sim time (``/clock``), mission progress
 (``/bb2/mission/progress``) and the real-time factor on one line.
 
-It stops the graph cleanly when the mission ends (progress reaches 1, the simulator reports the
-end on ``/bb2/status`` or exits with code 0), on Ctrl-C (SIGINT) or SIGTERM, after ``--timeout``,
-or when a node dies.  Stopping sends SIGINT to the process groups, then SIGTERM, then SIGKILL
+It stops the graph cleanly when the mission ends (``--end-at``: the progress reaches 1, or the
+simulator reports the end of the mission duration on ``/bb2/status`` or exits with code 0), when
+the simulator reports that it stopped (diverged), on Ctrl-C (SIGINT) or SIGTERM, after
+``--timeout``, or when a node dies.  Stopping sends SIGINT to the process groups, then SIGTERM, then SIGKILL
 after grace periods; the recorder is stopped last and gets the longest grace so it finishes its
 bag.  A node that dies is reported with its exit code or signal and its last log lines, and is
 handled by its restart policy (``--restart NODE=stop|restart[:N]|ignore``; default ``stop``).
@@ -74,7 +77,7 @@ GRAPH_NODES: tuple[GraphNode, ...] = (
     GraphNode("mixer", "bb2_control", "mixer", "bb2_control.nodes.mixer:main"),
     GraphNode("simulator", "bb2_sim", "simulator", "bb2_sim.nodes.simulator:main"),
 )
-"""Start order: recorder first (the launcher waits until it is subscribed), simulator last."""
+"""The graph's nodes (:func:`graph_specs` decides the start order)."""
 
 RUNNERS = ("auto", "ros2", "lib", "python")
 
@@ -474,13 +477,19 @@ def _cdr_unpack(fmt: str, data: bytes) -> tuple:
 
 
 END_WORDS = {"complete", "completed", "finished", "done", "end", "ended"}
+END_AT = ("either", "simulator", "progress")
+"""When the mission is over: the simulator reports the end of the mission duration (status
+``state: finished``), the mission progress reaches 1 (the path is flown), or whichever comes first."""
 
 
 class GraphMonitor:
     """A small rclpy node (own context, own thread) watching ``/clock``, the mission progress and
     ``/bb2/status`` on ``domain_id``; also answers graph questions (nodes, subscriptions)."""
 
-    def __init__(self, domain_id: int, *, node_name: str = "bb2_launch_monitor", rtf_window_s: float = 3.0):
+    def __init__(self, domain_id: int, *, node_name: str = "bb2_launch_monitor", rtf_window_s: float = 3.0,
+                 end_at: str = "either"):
+        if end_at not in END_AT:
+            raise LaunchError(f"end_at must be one of {END_AT}, got {end_at!r}")
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
@@ -497,7 +506,9 @@ class GraphMonitor:
         self._lock = threading.Lock()
         self.sim_time_s: float | None = None
         self.progress: float | None = None
-        self.status_end = False
+        self.status_end = False  # the simulator's status says the mission duration is over
+        self.sim_error: str | None = None  # the simulator's status says it stopped on an error
+        self.end_at = end_at
         self.clock_count = 0
         self._samples: collections.deque[tuple[float, float]] = collections.deque()
         self._first: tuple[float, float] | None = None
@@ -543,9 +554,14 @@ class GraphMonitor:
 
     def _on_status(self, msg) -> None:
         for st in msg.status:
-            for kv in st.values:
-                if kv.key.lower() in ("mission", "mission_state", "state") and kv.value.lower() in END_WORDS:
-                    self.status_end = True
+            if "simulator" not in st.name:
+                continue
+            vals = {kv.key: kv.value for kv in st.values}
+            state = vals.get("state", "").lower()
+            if state in END_WORDS:
+                self.status_end = True
+            elif state == "diverged":
+                self.sim_error = vals.get("error") or st.message or "diverged"
 
     def rtf(self, *, overall: bool = False) -> float | None:
         """Sim seconds per wall second over the last window (or since the first /clock)."""
@@ -562,7 +578,9 @@ class GraphMonitor:
 
     @property
     def mission_complete(self) -> bool:
-        return self.status_end or (self.progress is not None and self.progress >= 1.0)
+        by_sim = self.status_end
+        by_progress = self.progress is not None and self.progress >= 1.0
+        return {"either": by_sim or by_progress, "simulator": by_sim, "progress": by_progress}[self.end_at]
 
     def node_names(self) -> list[str]:
         return sorted(n for n, _ns in self.node.get_node_names_and_namespaces() if n != self.node_name)
@@ -573,6 +591,10 @@ class GraphMonitor:
             if not any(i.node_name == node_name for i in self.node.get_subscriptions_info_by_topic(t)):
                 return False
         return True
+
+    def publishes(self, node_name: str, topic: str) -> bool:
+        """Whether ``node_name`` has a publisher on ``topic`` (as discovered here)."""
+        return any(i.node_name == node_name for i in self.node.get_publishers_info_by_topic(topic))
 
     def close(self) -> None:
         import rclpy
@@ -587,12 +609,13 @@ class GraphMonitor:
                 rclpy.shutdown(context=self.context)
 
 
-def free_domain_id(*, rng: random.Random | None = None, tries: int = 8, listen_s: float = 0.5) -> GraphMonitor:
+def free_domain_id(*, rng: random.Random | None = None, tries: int = 8, listen_s: float = 0.5,
+                   **monitor_kw) -> GraphMonitor:
     """A :class:`GraphMonitor` on a random domain id (1..101) where no other node is seen."""
     rng = rng or random.Random()
     candidates = rng.sample(list(SAFE_DOMAIN_IDS), tries)
     for d in candidates:
-        mon = GraphMonitor(d)
+        mon = GraphMonitor(d, **monitor_kw)
         time.sleep(listen_s)
         if not mon.node_names():
             return mon
@@ -673,6 +696,8 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 reason, code = f"node '{sup.failure.name}' failed ({sup.failure.cause})", 1
             elif sup.finished:
                 reason = f"node '{sup.finished.name}' finished (exit code 0)"
+            elif monitor is not None and monitor.sim_error:
+                reason, code = f"the simulator stopped: {monitor.sim_error}", 1
             elif monitor is not None and monitor.mission_complete:
                 reason = "mission complete"
             elif not sup.running() and sup.done:
@@ -751,11 +776,36 @@ def check_params_file(path: Path) -> None:
             raise LaunchError(f"params file {path}: entry {node!r} needs a 'ros__parameters' mapping")
 
 
+class Settled:
+    """A readiness probe that is true once ``probe()`` has been true for ``settle_s`` seconds."""
+
+    def __init__(self, probe: Callable[[], bool], settle_s: float):
+        self.probe, self.settle_s = probe, settle_s
+        self._since: float | None = None
+
+    def __call__(self) -> bool:
+        if not self.probe():
+            self._since = None
+            return False
+        now = time.monotonic()
+        if self._since is None:
+            self._since = now
+        return now - self._since >= self.settle_s
+
+
 def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params: Path | None = None,
                 record: bool = True, runner: str = "auto",
                 policies: Mapping[str, RestartPolicy] | None = None,
-                monitor: GraphMonitor | None = None) -> list[ProcessSpec]:
-    """The process specs of the BB2 graph for one mission (recorder first, simulator last)."""
+                monitor: GraphMonitor | None = None, settle_s: float = 1.0) -> list[ProcessSpec]:
+    """The process specs of the BB2 graph for one mission, in start order.
+
+    The specs with a ``ready`` probe come first and are started one by one, each once the previous
+    is ready: the recorder (subscribed to every contract topic), then in lockstep the simulator
+    (its publishers seen for ``settle_s``: it publishes the state at t = 0 and waits for the
+    controllers, so the recorder has discovered it before the first step).  In real time the
+    simulator starts last (it steps on the wall clock from its first tick, on the failsafe until
+    commands arrive).
+    """
     from bb2_msgs_py.contract import select_topics
 
     if mode not in ("lockstep", "realtime"):
@@ -785,8 +835,13 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
             ros += ["-p", "use_sim_time:=true"]
         if params is not None:
             ros += ["--params-file", str(params)]
-        specs.append(ProcessSpec(node.name, [*base, *ros], policy, finishes_graph=node.name == "simulator"))
-    return specs
+        ready = None
+        if node.name == "simulator" and mode == "lockstep" and monitor is not None:
+            ready = Settled(lambda m=monitor: m.publishes("simulator", "/bb2/odom"), settle_s)
+        specs.append(ProcessSpec(node.name, [*base, *ros], policy, finishes_graph=node.name == "simulator",
+                                 ready=ready))
+    first = [s for s in specs if s.ready is not None]
+    return first + [s for s in specs if s.ready is None]
 
 
 def recorder_bags(run_dir: Path, exits: Sequence[NodeExit]) -> list[Path]:
@@ -831,6 +886,9 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
                         "NODE may be 'all'")
     p.add_argument("--max-restarts", type=int, default=DEFAULT_MAX_RESTARTS,
                    help=f"default N for 'restart' (default {DEFAULT_MAX_RESTARTS})")
+    p.add_argument("--end-at", choices=END_AT, default="either",
+                   help="the mission is over when the simulator reports the end of the mission duration, "
+                        "when the progress reaches 1 (path flown), or either (default)")
     p.add_argument("--timeout", type=float, default=None, help="wall-clock limit in seconds (exit 1)")
     p.add_argument("--ready-timeout", type=float, default=30.0,
                    help="seconds to wait for the recorder's subscriptions (default 30)")
@@ -876,7 +934,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
     os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
     try:
-        monitor = GraphMonitor(args.domain_id) if args.domain_id is not None else free_domain_id()
+        monitor = (GraphMonitor(args.domain_id, end_at=args.end_at) if args.domain_id is not None
+                   else free_domain_id(end_at=args.end_at))
     except LaunchError as exc:
         print(f"bb2-launch: error: {exc}", file=sys.stderr)
         return 2
@@ -891,7 +950,7 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"run {run_dir}", file=sys.stderr, flush=True)
     sup = Supervisor(specs, log_dir, env=env, echo=echo)
     try:
-        result = run_graph(sup, monitor, first=["recorder"] if not args.no_record else [],
+        result = run_graph(sup, monitor, first=[s.name for s in specs if s.ready is not None],
                            ready_timeout_s=args.ready_timeout, timeout_s=args.timeout)
     finally:
         sup.stop(hurry=True)
