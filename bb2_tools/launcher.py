@@ -433,9 +433,10 @@ class Supervisor:
         return events
 
     # ------------------------------------------------------------------ stopping
-    def stop(self, *, hurry: bool = False) -> list[NodeExit]:
+    def stop(self, *, hurry: bool | Callable[[], bool] = False) -> list[NodeExit]:
         """Stop everything still running, stage by stage (SIGINT, then SIGTERM, then SIGKILL after
-        each spec's grace periods; ``hurry`` shortens them to 1 s).  Returns the exits."""
+        each spec's grace periods; ``hurry`` -- or ``hurry()`` becoming true, e.g. on a second
+        Ctrl-C -- shortens them to 1 s).  Returns the exits."""
         self.stopping = True
         self._pending_restarts.clear()
         first = len(self.exits)
@@ -446,7 +447,8 @@ class Supervisor:
             self.poll()  # exits are recorded stage by stage
         return self.exits[first:]
 
-    def _terminate(self, group: list[_Child], *, hurry: bool) -> None:
+    def _terminate(self, group: list[_Child], *, hurry: bool | Callable[[], bool]) -> None:
+        hurried = hurry if callable(hurry) else (lambda: bool(hurry))
         for sig, grace_attr in ((signal.SIGINT, "sigint_grace_s"), (signal.SIGTERM, "sigterm_grace_s"),
                                 (signal.SIGKILL, None)):
             alive = [c for c in group if c.popen.poll() is None]
@@ -456,10 +458,11 @@ class Supervisor:
                 c.log.write(f"---- launcher: sending {signal.Signals(sig).name}\n".encode())
                 c.signal(sig)
             grace = 5.0 if grace_attr is None else max(getattr(c.spec, grace_attr) for c in alive)
-            if hurry:
-                grace = min(grace, 1.0)
-            deadline = time.monotonic() + grace
-            while time.monotonic() < deadline and any(c.popen.poll() is None for c in alive):
+            start = time.monotonic()
+            while any(c.popen.poll() is None for c in alive):
+                waited = time.monotonic() - start
+                if waited > grace or (hurried() and waited > 1.0):
+                    break
                 time.sleep(0.02)
 
     def __enter__(self) -> "Supervisor":
@@ -722,7 +725,7 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
         say(f"[bb2-launch] stopping: {reason}")
         if sup.failure:
             say(f"[bb2-launch] {sup.failure.report()}")
-        stopped = sup.stop(hurry=flag.count > 1)
+        stopped = sup.stop(hurry=lambda: flag.count > 1)
         for ev in stopped:
             if ev.returncode != 0 and ev.returncode != -signal.SIGINT:
                 say(f"[bb2-launch] during shutdown: {ev.report(5)}")
@@ -890,8 +893,9 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
                    help="the mission is over when the simulator reports the end of the mission duration, "
                         "when the progress reaches 1 (path flown), or either (default)")
     p.add_argument("--timeout", type=float, default=None, help="wall-clock limit in seconds (exit 1)")
-    p.add_argument("--ready-timeout", type=float, default=30.0,
-                   help="seconds to wait for the recorder's subscriptions (default 30)")
+    p.add_argument("--ready-timeout", type=float, default=60.0,
+                   help="seconds to wait for the recorder's subscriptions and (lockstep) the simulator's "
+                        "publishers (default 60)")
     p.add_argument("--runner", choices=RUNNERS, default="auto", help="how nodes are started (default auto)")
     p.add_argument("--echo", action="store_true", help="also print every node's output, prefixed")
     p.add_argument("--install-ros-ws", action="store_true",

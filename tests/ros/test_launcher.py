@@ -224,6 +224,31 @@ def test_supervisor_without_dds_reports_restarts_and_failure(tmp_path):
     assert (tmp_path / "logs" / "crash.log").read_text().splitlines().count("boom line") == 3
 
 
+def test_stop_escalates_sigint_sigterm_sigkill_stage_by_stage(tmp_path):
+    def proc(ignore: str, on_int: str = "") -> list[str]:
+        code = ("import signal, sys, time\n"
+                + "".join(f"signal.signal(signal.{sig}, signal.SIG_IGN)\n" for sig in ignore.split())
+                + on_int + "print('up', flush=True)\ntime.sleep(60)\n")
+        return [sys.executable, "-c", code]
+
+    polite = "signal.signal(signal.SIGINT, lambda *a: sys.exit(0))\n"
+    specs = [L.ProcessSpec("stubborn", proc("SIGINT SIGTERM"), sigint_grace_s=0.3, sigterm_grace_s=0.3),
+             L.ProcessSpec("deaf", proc("SIGINT"), sigint_grace_s=0.3),
+             L.ProcessSpec("last", proc("", polite), stop_stage=1)]
+    sup = L.Supervisor(specs, tmp_path / "logs")
+    sup.start()
+    t0 = time.monotonic()
+    while not all("up" in sup.last_lines(n) for n in ("stubborn", "deaf", "last")):
+        assert time.monotonic() - t0 < 20
+        time.sleep(0.02)
+    exits = sup.stop()
+    assert [(e.name, e.returncode, e.action) for e in exits][-1] == ("last", 0, "shutdown")
+    assert {e.name: e.cause for e in exits} == {"stubborn": "killed by SIGKILL", "deaf": "killed by SIGTERM",
+                                                "last": "exit code 0"}
+    assert "sending SIGKILL" in (tmp_path / "logs" / "stubborn.log").read_text()
+    assert time.monotonic() - t0 < 15
+
+
 # ------------------------------------------------------------------------ real DDS
 
 

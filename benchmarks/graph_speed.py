@@ -1,0 +1,259 @@
+"""Speed of the BB2 ROS 2 graph, measured in one run (issue 4 "Done when").
+
+1. Lockstep: the 500 s canyon mission (``missions/canyon.yaml`` with the simulator's ``duration_s``
+   set to 500) with every node and the recorder, started by the launcher's own code
+   (:mod:`bb2_tools.launcher`).  Prints the real-time factor (sim seconds per wall second while
+   stepping, and including start-up) -- goal >= 20x -- and the message counts: what the simulator
+   published (its step count from ``trajectory_csv`` and its re-send counter from the last
+   ``/bb2/status``) against what is in the bag, per topic -- goal: zero lost.
+2. Real time at 100 Hz (``rate_hz: 100``, 100 s of sim time = 20 s wall): a probe node takes the
+   DDS source timestamps (the writer's wall clock) of ``/bb2/state_native`` and ``/bb2/planes/cmd``;
+   the step period's p50/p99 of ``|period - 10 ms|`` -- goal p99 <= 1 ms -- and the sensor ->
+   plane-command loop latency, source time of the mixer's command minus that of the simulator's
+   state with the same stamp -- goal p99 <= 3 ms.
+
+Usage: ``python benchmarks/graph_speed.py [--out DIR] [--rt-sim-s 100] [--lockstep-sim-s 500]``
+(``bash run.sh bench`` runs it with the defaults; about 1-3 minutes of wall time on 2 cores).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bb2_tools import launcher as L  # noqa: E402
+
+TS = 0.05  # the ROM's major step (s); one simulator step per Ts of sim time
+
+
+class Probe:
+    """An rclpy node (own context, own thread) taking the DDS source timestamps (writer's wall clock at
+    publication) of the simulator's states and the mixer's plane commands, per sim-time stamp.
+
+    (The bag cannot give these: the recorder's publish times are its receive times on the sim clock.)
+    """
+
+    def __init__(self, domain_id: int):
+        import threading
+
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import HistoryPolicy
+        from rclpy.signals import SignalHandlerOptions
+
+        from bb2_msgs_py import conversions as cv
+        from bb2_msgs_py.contract import message_class, qos_profile
+
+        self.cv = cv
+        self.state_src: dict[int, int] = {}
+        self.cmd_src: dict[int, int] = {}
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("bb2_bench_probe", context=self.context, enable_rosout=False)
+
+        def qos(name):
+            q = qos_profile(name)
+            q.history, q.depth = HistoryPolicy.KEEP_LAST, 1000
+            return q
+
+        self.node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
+                                      self._on_state, qos("/bb2/state_native"))
+        self.node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd",
+                                      self._on_cmd, qos("/bb2/planes/cmd"))
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.1)
+
+    def _on_state(self, msg, info) -> None:
+        t_ns = self.cv.seconds_to_ns(self.cv.state_native_from_message(msg).t)
+        self.state_src.setdefault(t_ns, int(info["source_timestamp"]))
+
+    def _on_cmd(self, msg, info) -> None:
+        self.cmd_src.setdefault(self.cv.stamp_to_ns(msg.header.stamp), int(info["source_timestamp"]))
+
+    def close(self) -> None:
+        import rclpy
+
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeout_s: float,
+                   probe: bool = False) -> tuple[L.RunResult, float, Probe | None]:
+    """Fly ``mission`` through the whole graph (recorder included); return the run result, the
+    wall time from the first /clock to the end, and the probe (if asked for, closed)."""
+    os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
+    out.mkdir(parents=True, exist_ok=True)
+    params = out.parent / f"{out.name}_params.yaml"
+    params.write_text(yaml.safe_dump({"simulator": {"ros__parameters": sim_params}}))
+    monitor = L.free_domain_id(end_at="simulator")
+    env = dict(os.environ, ROS_DOMAIN_ID=str(monitor.domain_id), ROS_LOG_DIR=str(out / "logs" / "ros"),
+               PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    specs = L.graph_specs(mission, out, mode=mode, params=params, monitor=monitor)
+    sup = L.Supervisor(specs, out / "logs", env=env)
+    pr = Probe(monitor.domain_id) if probe else None
+    try:
+        res = L.run_graph(sup, monitor, first=[s.name for s in specs if s.ready is not None],
+                          timeout_s=timeout_s, status_period_s=10.0)
+    finally:
+        sup.stop(hurry=True)
+        monitor.close()
+        if pr is not None:
+            pr.close()
+    stepping_wall = (res.sim_time_s / res.rtf_overall) if res.rtf_overall else float("nan")
+    return res, stepping_wall, pr
+
+
+def last_simulator_status(reader) -> dict[str, str]:
+    """The simulator's status with the highest step count in the bag."""
+    last: dict[str, str] = {}
+    for _topic, _t, msg in reader.messages("/bb2/status"):
+        for st in msg.status:
+            if "simulator" in st.name:
+                vals = {kv.key: kv.value for kv in st.values}
+                if int(vals.get("step", -1)) >= int(last.get("step", -1)):
+                    last = vals
+    return last
+
+
+def stamps_and_pub_times(reader, topic: str) -> list[tuple[int, int]]:
+    """(header stamp ns, publish time ns) of every message on ``topic``."""
+    from rclpy.serialization import deserialize_message
+
+    from bb2_msgs_py import conversions as cv
+    from bb2_msgs_py.contract import message_class
+
+    cls = message_class(reader.topics[topic])
+    out = []
+    for m in reader.raw_messages(topic):
+        msg = deserialize_message(m.data, cls)
+        if hasattr(msg, "header"):
+            ns = cv.stamp_to_ns(msg.header.stamp)
+        elif hasattr(msg, "clock"):
+            ns = cv.stamp_to_ns(msg.clock)
+        else:  # /bb2/state_native (Float64MultiArray): the time is in the state
+            ns = cv.seconds_to_ns(cv.state_native_from_message(msg).t)
+        out.append((ns, m.publish_time_ns))
+    return out
+
+
+def lockstep(args, tmp: Path) -> None:
+    from bb2_tools.bagfile import BagReader
+
+    out = tmp / "lockstep"
+    csv_path = tmp / "lockstep_states.csv"
+    t0 = time.monotonic()
+    res, stepping_wall, _ = run_graph_once(REPO / "missions" / "canyon.yaml", out, "lockstep",
+                                        {"duration_s": float(args.lockstep_sim_s), "trajectory_csv": str(csv_path)},
+                                        timeout_s=args.timeout)
+    total_wall = time.monotonic() - t0
+    print(f"lockstep canyon: {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s")
+    if res.exit_code != 0:
+        for e in res.exits:
+            print("  " + e.report(5))
+        return
+    with open(csv_path) as fh:
+        states = sum(1 for _ in csv.reader(fh)) - 1  # header
+    steps = states - 1
+    sim_s = steps * TS
+    print(f"  real-time factor: {sim_s / stepping_wall:.1f}x while stepping ({stepping_wall:.1f} s wall for "
+          f"{sim_s:.1f} s sim), {sim_s / total_wall:.1f}x including start-up and shutdown "
+          f"({total_wall:.1f} s)   [goal >= 20x]")
+    reader = BagReader(out)
+    counts = reader.message_counts
+    status = last_simulator_status(reader)
+    resends = int(status.get("lockstep_resends", "0"))
+    print(f"  simulator: {steps} steps, {states} states published, {resends} re-sends "
+          f"(last /bb2/status step = {status.get('step')})")
+    uniq = {t: len({s for s, _ in stamps_and_pub_times(reader, t)})
+            for t in ("/bb2/odom", "/bb2/state_native", "/bb2/planes/cmd", "/bb2/propeller/cmd")}
+    expected = {  # topic: (published by count, in the bag)
+        "/clock": (states, counts.get("/clock", 0)),
+        "/bb2/odom (distinct stamps)": (states, uniq["/bb2/odom"]),
+        "/bb2/state_native (with re-sends)": (states + resends, counts.get("/bb2/state_native", 0)),
+        "/bb2/depth": (states, counts.get("/bb2/depth", 0)),
+        "/bb2/altitude": (states, counts.get("/bb2/altitude", 0)),
+        "/bb2/imu": (steps, counts.get("/bb2/imu", 0)),
+        "/bb2/planes/state": (steps, counts.get("/bb2/planes/state", 0)),
+        "/bb2/propeller/state": (steps, counts.get("/bb2/propeller/state", 0)),
+        "/bb2/planes/cmd (distinct stamps)": (states, uniq["/bb2/planes/cmd"]),
+        "/bb2/propeller/cmd (distinct stamps)": (states, uniq["/bb2/propeller/cmd"]),
+    }
+    lost_total = 0
+    for name, (pub, bag) in expected.items():
+        lost = pub - bag
+        lost_total += max(lost, 0)
+        print(f"    {name:40s} published {pub:6d}  in bag {bag:6d}  lost {lost:5d}")
+    print(f"  lost messages: {lost_total}   [goal 0]")
+
+
+def realtime(args, tmp: Path) -> None:
+    from bb2_tools.bagfile import BagReader
+
+    out = tmp / "realtime"
+    rate = 100.0
+    res, _, probe = run_graph_once(REPO / "missions" / "canyon.yaml", out, "realtime",
+                                   {"duration_s": float(args.rt_sim_s), "rate_hz": rate}, timeout_s=args.timeout,
+                                   probe=True)
+    print(f"real time at {rate:g} Hz: {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s")
+    if res.exit_code != 0:
+        return
+    stamps = sorted(probe.state_src)
+    pubs = np.array([probe.state_src[s] for s in stamps], dtype=np.int64)
+    period_ms = np.diff(pubs) * 1e-6
+    dev_ms = np.abs(period_ms - 1e3 / rate)
+    print(f"  step period (DDS source timestamps of /bb2/state_native): {len(period_ms)} periods, mean "
+          f"{period_ms.mean():.3f} ms; |period - {1e3 / rate:g} ms| p50 {np.percentile(dev_ms, 50):.3f} ms, "
+          f"p99 {np.percentile(dev_ms, 99):.3f} ms, max {dev_ms.max():.3f} ms   [goal p99 <= 1 ms]")
+    lat_ms = np.array([(probe.cmd_src[s] - probe.state_src[s]) * 1e-6 for s in stamps if s in probe.cmd_src])
+    if len(lat_ms):
+        print(f"  loop latency /bb2/state_native -> /bb2/planes/cmd (same stamp, source timestamps): "
+              f"{len(lat_ms)}/{len(stamps)} steps answered, p50 {np.percentile(lat_ms, 50):.3f} ms, "
+              f"p99 {np.percentile(lat_ms, 99):.3f} ms, max {lat_ms.max():.3f} ms   [goal p99 <= 3 ms]")
+    reader = BagReader(out)
+    status = last_simulator_status(reader)
+    print(f"  simulator status: overruns {status.get('overruns')}, failsafe steps {status.get('failsafe_steps')}, "
+          f"measured step rate {status.get('step_rate_hz')} Hz")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=None, help="keep the bags here (default: a temporary directory)")
+    ap.add_argument("--lockstep-sim-s", type=float, default=500.0)
+    ap.add_argument("--rt-sim-s", type=float, default=100.0)
+    ap.add_argument("--timeout", type=float, default=900.0, help="wall limit per run (s)")
+    ap.add_argument("--only", choices=("lockstep", "realtime"), default=None)
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory(prefix="bb2_graph_speed_") as t:
+        tmp = args.out or Path(t)
+        tmp.mkdir(parents=True, exist_ok=True)
+        if args.only in (None, "lockstep"):
+            lockstep(args, tmp)
+        if args.only in (None, "realtime"):
+            realtime(args, tmp)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
