@@ -11,13 +11,14 @@ venv="${BB2_VENV:-$here/.venv}"
 setup() {
   local stamp="$venv/.bb2-setup-stamp"
   local want
-  want="$(cat requirements.txt pyproject.toml | sha256sum | cut -d' ' -f1)"
+  want="$(cat requirements.txt pyproject.toml bb2_ros_ws/src/*/setup.py bb2_ros_ws/install_into_venv.py | sha256sum | cut -d' ' -f1)"
   if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then return 0; fi
   echo "[run.sh] creating/updating the virtual environment in $venv" >&2
   [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
   "$venv/bin/python" -m pip install -q --upgrade pip >/dev/null 2>&1 || true
   "$venv/bin/python" -m pip install -q -r requirements.txt 2>&1 | grep -v "is ignored: it is neither" || true
   "$venv/bin/python" -m pip install -q --no-deps --no-build-isolation -e . 2>&1 | grep -v "is ignored: it is neither" || true
+  "$venv/bin/python" bb2_ros_ws/install_into_venv.py -q   # lib/<pkg>/<exe> + ament index, as `ros2 run` expects
   "$venv/bin/python" -c "import numpy, scipy, trimesh, mcap, rclpy, bb2_sim" || { echo "[run.sh] setup failed" >&2; exit 1; }
   echo "$want" > "$stamp"
 }

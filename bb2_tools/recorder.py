@@ -115,7 +115,8 @@ class Recorder:
             self.node.get_logger().warning(f"cannot read offered QoS of {name}: {exc}")
             return []
 
-    def _on_message(self, spec: TopicSpec, data: bytes, info: dict | None = None) -> None:
+    def _on_message(self, spec: TopicSpec, data: bytes, info: dict) -> None:
+        # info must stay a required argument: rclpy passes the message info only to callbacks that need two
         t_ns = self.node.get_clock().now().nanoseconds
         pub_ns = int(info.get("source_timestamp", t_ns)) if isinstance(info, dict) else t_ns
         with self._lock:
