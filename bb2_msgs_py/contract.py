@@ -94,8 +94,10 @@ class QosDescription:
 QOS: dict[str, QosDescription] = {
     # rclpy qos_profile_sensor_data: best effort, volatile, keep last 5
     "sensor": QosDescription("best_effort", "volatile", "keep_last", 5),
-    # commands and guidance outputs: every sample matters
-    "command": QosDescription("reliable", "volatile", "keep_last", 10),
+    # commands, guidance outputs and the lockstep state: every sample matters; the writer keeps 100
+    # samples so a reader that is not part of the lockstep handshake (recorder, test, tool) may lag 100
+    # steps without losing one (reliable keep-last drops unacknowledged samples beyond the depth)
+    "command": QosDescription("reliable", "volatile", "keep_last", 100),
     # paths are latched so a late subscriber (RViz, recorder) gets the current path
     "latched": QosDescription("reliable", "transient_local", "keep_last", 1),
     # rclcpp::ClockQoS, as rosbag2's player publishes /clock: best effort, keep last 1

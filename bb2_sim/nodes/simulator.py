@@ -11,6 +11,9 @@ Parameters (``config/bb2_graph.yaml`` lists them all with their defaults):
                        time without an answer (controllers replay their cached answer, never step twice;
                        covers discovery at start-up and a best-effort odometry sample lost under load).
 ``startup_timeout_s``  lockstep: the timeout of the very first step (nodes still starting).
+``min_state_subscribers`` publish the first state (start stepping) only once this many readers of
+                       ``/bb2/state_native`` are discovered (e.g. 3: path_following, l1_autopilot, recorder), at
+                       most ``startup_timeout_s``; 0 = start at once.
 ``command_timeout_s``  real time: a command older than this (wall time since it arrived), or none at all,
                        engages the failsafe: planes commanded to neutral (0 rad), propeller held at the last
                        valid command (the mission's nominal speed command if none ever arrived).
@@ -92,6 +95,8 @@ class SimulatorShell:
         duration = float(P("duration_s", -1.0, "stop at this sim time (< 0: mission duration; none: run on)"))
         self.exit_at_end = bool(P("exit_at_end", False, "exit 0 when the duration is reached"))
         csv_path = P("trajectory_csv", "", "write t and the native state of every step to this CSV ('' = off)")
+        self.min_state_subscribers = int(P("min_state_subscribers", 0,
+                                           "wait for this many /bb2/state_native readers before the first step"))
         self.status_period_s = require_positive("status_period_s", P(
             "status_period_s", 1.0, "wall period of /bb2/status"))
         throttle_s = require_positive("warn_throttle_s", P(
@@ -153,9 +158,10 @@ class SimulatorShell:
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.status_timer = node.create_timer(self.status_period_s, self._publish_status, clock=steady)
-        self._publish_state()
+        self.started = False
+        self._sent_wall = self._first_sent_wall = time.monotonic()
+        self.start_timer = node.create_timer(0.02, self._start, clock=steady)
         if self.time_mode == "lockstep":
-            self._sent_wall = self._first_sent_wall = time.monotonic()
             self.watchdog = node.create_timer(min(0.01, self.lockstep_retry_s / 2), self._watchdog, clock=steady)
         else:
             self._next_tick = time.monotonic()
@@ -276,8 +282,23 @@ class SimulatorShell:
             self._set_failsafe(False, "")
             self._advance(planes, rps)
 
+    def _start(self) -> None:
+        """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
+        after ``startup_timeout_s``), so that a recorder or a test started with the graph misses nothing."""
+        n = self.node.count_subscribers("/bb2/state_native")
+        waited = time.monotonic() - self._t_start_wall
+        if n < self.min_state_subscribers and waited < self.startup_timeout_s:
+            return
+        if n < self.min_state_subscribers:
+            self.warn.warn("start", f"starting with {n} of {self.min_state_subscribers} subscribers of "
+                                    f"/bb2/state_native after {waited:.1f} s")
+        self.start_timer.cancel()
+        self.started = True
+        self._next_tick = time.monotonic()
+        self._publish_state()
+
     def _watchdog(self) -> None:
-        if not self._stepping():
+        if not self._stepping() or not self.started:
             return
         now = time.monotonic()
         timeout = self.startup_timeout_s if self.sim.n == 0 else self.lockstep_timeout_s
@@ -314,7 +335,7 @@ class SimulatorShell:
 
     def _tick(self) -> None:
         """Real-time step (wall timer)."""
-        if not self._stepping():
+        if not self._stepping() or not self.started:
             return
         now = time.monotonic()
         period = 1.0 / self.rate_hz

@@ -112,15 +112,16 @@ def test_graph_lockstep_equals_library_runner(tmp_path, state_source):
     csv_file = tmp_path / "traj.csv"
     common = ["--params-file", str(PARAMS), "-p", f"mission_file:={mission}", "-p", "status_period_s:=0.5",
               "-p", f"state_source:={state_source}"]
+    ref = _library_trajectory(mission)
     listener = Listener(domain_id)
     procs = {m: _spawn(m, domain_id, *common) for m in CONTROLLERS}
     sim = None
     try:
+        n_readers = 3 if state_source == "native" else 1  # (path_following, l1_autopilot +) this listener
         overrides = tmp_path / "overrides.yaml"  # a second params file beats the node keys of the first
         overrides.write_text(f"simulator:\n  ros__parameters:\n    trajectory_csv: {csv_file}\n"
-                             f"    exit_at_end: true\n")
+                             f"    exit_at_end: true\n    min_state_subscribers: {n_readers}\n")
         sim = _spawn("bb2_sim.nodes.simulator", domain_id, *common, "--params-file", str(overrides))
-        ref = _library_trajectory(mission)  # computed while the graph runs
         out, _ = sim.communicate(timeout=50)
         assert sim.returncode == 0, out
         time.sleep(0.6)  # last status round
