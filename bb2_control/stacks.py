@@ -176,7 +176,10 @@ class Stack:
         self._last = None
 
     # -- inputs in the stack frame
-    def _inputs(self, s: VehicleState) -> dict[str, Any]:
+    def inputs(self, s: VehicleState) -> dict[str, Any]:
+        """The vehicle state in this stack's frame, as its pieces take it: p (position), R_BI (FLU body to
+        stack frame), v_flu, q_up / r_left (bow-up / bow-to-port rates), theta, heading. Nodes that run one
+        piece alone use this so their conversion is the stack's own."""
         phi, theta, psi = (float(x) for x in s.euler_native)
         R_BI_native = frames.rotation_native(phi, theta, psi) @ frames.D_FLIP
         return dict(p=self._M.T @ np.asarray(s.p_native, float), R_BI=self._M.T @ R_BI_native,
@@ -191,7 +194,7 @@ class Stack:
             raise NonFiniteInputError(
                 f"stack {self.name}: non-finite vehicle state at t={state.t}: {state.as_vector()}"
                 + (" (nan_policy 'hold' has no previous output yet)" if self.nan_policy == "hold" else ""))
-        out = self._step(state, self._inputs(state))
+        out = self._step(state, self.inputs(state))
         self._last = out
         return out
 

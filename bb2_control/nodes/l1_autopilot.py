@@ -103,7 +103,7 @@ class L1AutopilotShell:
 
         stack = self.stack
         try:
-            x = stack._inputs(state)  # the stack's own frame conversion (shared with Stack.step)
+            x = stack.inputs(state)  # the stack's own frame conversion (shared with Stack.step)
             q_ref, r_ref = flow_to_body_rates(rate[0], rate[1], x["v_flu"])
             dV_deg, dH_deg, _ = stack.inner.step(q_ref, r_ref, x["q_up"], x["r_left"])
             rps = stack.speed.step()

@@ -109,7 +109,7 @@ class PathFollowingShell:
             return
         stack = self.stack
         try:
-            x = stack._inputs(state)  # the stack's own frame conversion (shared with Stack.step)
+            x = stack.inputs(state)  # the stack's own frame conversion (shared with Stack.step)
             pf = stack.guidance.step(x["p"], x["R_BI"], x["v_flu"])
         except (NonFiniteInputError, PathFollowingError, ValueError) as exc:
             self.counts["errors"] += 1

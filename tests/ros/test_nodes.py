@@ -221,7 +221,7 @@ def test_path_following_answers_a_state_with_the_library_law(graph):
     msg = cv.state_native_message(state)
     probe.wait(lambda: (probe.pub("/bb2/state_native", msg) or True) and rate_box and prog_box, 20,
                "rate command", proc)
-    x = comp.stack._inputs(state)
+    x = comp.stack.inputs(state)
     pf = comp.stack.guidance.step(x["p"], x["R_BI"], x["v_flu"])
     q_c, r_c = cv.rate_command_from_message(rate_box[0])
     assert (q_c, r_c) == (pf.q_c, pf.r_c)
@@ -252,7 +252,7 @@ def test_l1_autopilot_pairs_state_and_rate_command_by_stamp(graph):
     assert not vh_box  # no state with that stamp yet: no answer
     probe.pub("/bb2/state_native", cv.state_native_message(state))
     probe.wait(lambda: vh_box and prop_box, 10, "autopilot answer", proc)
-    x = comp.stack._inputs(state)
+    x = comp.stack.inputs(state)
     dV, dH, _ = comp.stack.inner.step(*flow_to_body_rates(0.01, -0.02, x["v_flu"]), x["q_up"], x["r_left"])
     got = cv.vh_from_message(vh_box[0])
     assert got == (math.radians(dV), math.radians(dH))
