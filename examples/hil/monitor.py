@@ -1,0 +1,136 @@
+#!/usr/bin/env python3
+"""The bench monitor of the HIL example: watches the simulator over the contract and judges the flight.
+
+Subscribes to ``/bb2/odom`` (the flown trajectory) and ``/bb2/status`` (the simulator's diagnostics:
+mode, failsafe, counters), and stops when the simulator reports ``state`` ``finished`` or ``diverged``
+(or after ``--timeout`` wall seconds).  It then prints, and writes as JSON with ``--summary``:
+
+* the path errors of the flown odometry from the mission path (closest point; horizontal > 0 left of
+  the path, vertical > 0 above; RMS and max, metres), and whether every state was finite;
+* the failsafe history from the status: when the autopilot's commands first released it, whether it
+  engaged again afterwards, and the simulator's final counters (rejected / clamped commands, overruns).
+
+Usage::
+
+    python examples/hil/monitor.py --mission missions/canyon.yaml [--summary out.json] [--timeout 120]
+        [--domain-id N]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+
+def summarize(mission_file: Path, odom: list[tuple[float, np.ndarray]], statuses: list[dict[str, str]],
+              *, settle_s: float = 10.0) -> dict:
+    """The judgement of a flight from its odometry ``(t, p_native)`` and simulator status values.
+
+    ``settle_s``: the path errors are also reported from this sim time on (``*_settled``), after the
+    vehicle has converged from the start-up transient.
+    """
+    from bb2_tools.mission import load_mission, path_errors_closest
+
+    mission = load_mission(mission_file)
+    path = mission.path if mission.path.frame == "native" else mission.path.to_frame("native")
+    t = np.array([s[0] for s in odom]) if odom else np.zeros(0)
+    P = np.array([s[1] for s in odom]).reshape(-1, 3)
+    finite = bool(np.all(np.isfinite(P)))
+    eh, ev = path_errors_closest(path, P) if finite and len(P) else (np.zeros(0), np.zeros(0))
+
+    def rms_max(e: np.ndarray) -> tuple[float, float]:
+        return (float(np.sqrt(np.mean(e ** 2))), float(np.max(np.abs(e)))) if e.size else (math.nan, math.nan)
+
+    late = t >= settle_s
+    out = {"mission": str(mission_file), "odometry_messages": len(odom),
+           "t_first_s": float(t[0]) if t.size else math.nan, "t_last_s": float(t[-1]) if t.size else math.nan,
+           "state_finite": finite}
+    for name, e in (("horizontal", eh), ("vertical", ev)):
+        out[f"e_{name}_rms_m"], out[f"e_{name}_max_m"] = rms_max(e)
+        out[f"e_{name}_rms_m_settled"], out[f"e_{name}_max_m_settled"] = rms_max(e[late[:e.size]])
+    fs = [v.get("failsafe") == "true" for v in statuses]
+    first_ok = next((i for i, f in enumerate(fs) if not f), None)
+    out["status_messages"] = len(statuses)
+    out["failsafe_released_at_s"] = float(statuses[first_ok]["sim_time_s"]) if first_ok is not None else None
+    out["failsafe_after_release"] = bool(first_ok is not None and any(fs[first_ok:]))
+    out["final_status"] = statuses[-1] if statuses else {}
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--mission", required=True, type=Path)
+    p.add_argument("--summary", type=Path, default=None, help="write the judgement as JSON here")
+    p.add_argument("--timeout", type=float, default=600.0, help="wall seconds before giving up")
+    p.add_argument("--domain-id", type=int, default=None)
+    args = p.parse_args(argv)
+
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from bb2_msgs_py import conversions as cv
+    from bb2_msgs_py.contract import message_class, qos_profile
+
+    kw = {"signal_handler_options": SignalHandlerOptions.NO}
+    if args.domain_id is not None:
+        kw["domain_id"] = args.domain_id
+    rclpy.init(**kw)
+    node = rclpy.create_node("hil_monitor")
+    odom: list[tuple[float, np.ndarray]] = []
+    statuses: list[dict[str, str]] = []
+    stop = threading.Event()
+
+    def on_odom(msg) -> None:
+        s = cv.odometry_to_state(msg)
+        odom.append((s.t, s.p_native.copy()))
+
+    def on_status(msg) -> None:
+        for st in msg.status:
+            if st.name == "bb2/simulator":
+                vals = {kv.key: kv.value for kv in st.values}
+                statuses.append(vals)
+                if vals.get("state") in ("finished", "diverged"):
+                    stop.set()
+
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    node.create_subscription(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", on_odom,
+                             QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT))
+    node.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status", on_status,
+                             qos_profile("/bb2/status"))
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, lambda *_: stop.set())
+    print("hil monitor ready", flush=True)
+    deadline = time.monotonic() + args.timeout
+    while not stop.is_set() and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    node.destroy_node()
+    rclpy.shutdown()
+    summary = summarize(args.mission, odom, statuses)
+    summary["timed_out"] = not stop.is_set()
+    if args.summary:
+        args.summary.write_text(json.dumps(summary, indent=2))
+    fin = summary["final_status"]
+    print(f"hil monitor: {summary['odometry_messages']} odometry messages to t = {summary['t_last_s']:.2f} s, "
+          f"state finite: {summary['state_finite']}\n"
+          f"  path error horizontal RMS {summary['e_horizontal_rms_m']:.3f} m (max {summary['e_horizontal_max_m']:.3f}),"
+          f" vertical RMS {summary['e_vertical_rms_m']:.3f} m (max {summary['e_vertical_max_m']:.3f})\n"
+          f"  failsafe released at t = {summary['failsafe_released_at_s']} s, engaged again afterwards: "
+          f"{summary['failsafe_after_release']}; simulator: {fin.get('state')}, failsafe_steps "
+          f"{fin.get('failsafe_steps')}, overruns {fin.get('overruns')}, step rate {fin.get('step_rate_hz')} Hz",
+          flush=True)
+    return 0 if not summary["timed_out"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
