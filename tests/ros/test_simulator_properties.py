@@ -229,9 +229,10 @@ def bench():
     try:
         b.valid_on.set()
         deadline = time.monotonic() + 60
-        while b.clock_ns < int(3e9) and time.monotonic() < deadline and sim.p.poll() is None:
+        t_ready_ns = int((MAX_AGE_S + 3.0) * 1e9)  # so that 'stale' stamps (>= 0) exist
+        while b.clock_ns < t_ready_ns and time.monotonic() < deadline and sim.p.poll() is None:
             time.sleep(0.05)
-        assert b.clock_ns >= int(3e9), f"the simulator did not start:\n{sim.output()}"
+        assert b.clock_ns >= t_ready_ns, f"the simulator did not start:\n{sim.output()}"
         assert "realtime at 50 Hz" in sim.output()
         b.wait_settled(0.0)
         b.sim = sim
