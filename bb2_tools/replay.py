@@ -300,17 +300,21 @@ class Player:
 
     def play(self) -> PlayStats:
         """Play to the end (or forever with ``loop``) unless :meth:`stop` is called."""
+        clock_only = not self.pubs and self.clock_pub is not None  # e.g. --topics /clock: the playback clock
+        if not self.pubs and not clock_only:
+            return self.stats
         while not self._stop.is_set():
             self._last_clock_ns = -1
-            for m in self.reader.raw_messages(self.topics or None):
-                if m.topic not in self.pubs or m.log_time_ns < self.start_ns:
+            for m in self.reader.raw_messages(None if clock_only else self.topics):
+                if m.log_time_ns < self.start_ns or (m.topic not in self.pubs and not clock_only):
                     continue
                 if not self._wait_until(m.log_time_ns):
                     return self.stats
                 self._publish_clock(m.log_time_ns)
-                self.pubs[m.topic].publish(m.data)
-                self.stats.published[m.topic] = self.stats.published.get(m.topic, 0) + 1
-            if not self.loop or not self.topics:
+                if m.topic in self.pubs:
+                    self.pubs[m.topic].publish(m.data)
+                    self.stats.published[m.topic] = self.stats.published.get(m.topic, 0) + 1
+            if not self.loop:
                 break
             self.stats.loops += 1
             self.clock.restart(self.start_ns)
