@@ -176,6 +176,18 @@ class Listener:
         rclpy.shutdown(context=self.ctx)
 
 
+def _quiet_listener(topics: dict[str, str], attempts: int = 8) -> tuple[int, Listener]:
+    """A listener on a random domain in 100..230 nobody else uses (other test runs pick random domains too)."""
+    for _ in range(attempts):
+        domain_id = random.randint(100, 230)
+        lst = Listener(domain_id, topics)
+        time.sleep(1.0)
+        if not [n for n, _ in lst.node.get_node_names_and_namespaces() if n != "replay_test"]:
+            return domain_id, lst
+        lst.close()
+    raise AssertionError("no free ROS domain in 100..230")
+
+
 def _env() -> dict[str, str]:
     env = dict(os.environ)
     env["AMENT_PREFIX_PATH"] = env.get("AMENT_PREFIX_PATH") or sys.prefix
@@ -187,15 +199,14 @@ def _env() -> dict[str, str]:
 
 def test_replay_republishes_recorded_odometry_with_pause_offset_and_filter(recorded):
     bag, _, n = recorded
-    domain_id = random.randint(100, 230)
     reader = BagReader(bag)
     offset_s = 0.5
     want = [m for m in reader.raw_messages("/bb2/odom") if m.log_time_ns >= cv.seconds_to_ns(offset_s)]
-    listener = Listener(domain_id, {"/bb2/odom": "nav_msgs/msg/Odometry", "/clock": "rosgraph_msgs/msg/Clock",
-                                    "/bb2/state_native": "std_msgs/msg/Float64MultiArray"})
+    domain_id, listener = _quiet_listener({"/bb2/odom": "nav_msgs/msg/Odometry", "/clock": "rosgraph_msgs/msg/Clock",
+                                           "/bb2/state_native": "std_msgs/msg/Float64MultiArray"})
     proc = subprocess.Popen([sys.executable, "-m", "bb2_tools.replay", str(bag), "--topics", "/bb2/odom",
                              "--rate", "1.0", "--start-offset", str(offset_s), "--domain-id", str(domain_id),
-                             "--delay", "1.5"], cwd=REPO, env=_env(), stdout=subprocess.PIPE,
+                             "--delay", "1.0"], cwd=REPO, env=_env(), stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
     try:
         deadline = time.monotonic() + 20
@@ -239,11 +250,10 @@ def test_replay_service_pause_loop_and_clean_sigint(recorded):
     from std_srvs.srv import SetBool
 
     bag, _, _ = recorded
-    domain_id = random.randint(100, 230)
     offset_s = 2.5  # the last 0.5 s of commands: 10 per loop
     per_loop = sum(1 for m in BagReader(bag).raw_messages("/bb2/propeller/cmd")
                    if m.log_time_ns >= cv.seconds_to_ns(offset_s))
-    listener = Listener(domain_id, {"/bb2/propeller/cmd": "sensor_msgs/msg/JointState"})
+    domain_id, listener = _quiet_listener({"/bb2/propeller/cmd": "sensor_msgs/msg/JointState"})
     client = listener.node.create_client(SetBool, "/bb2_replay/pause")
     proc = subprocess.Popen([sys.executable, "-m", "bb2_tools.replay", str(bag), "--topics", "/bb2/propeller/cmd",
                              "--rate", "2", "--start-offset", str(offset_s), "--pause", "--loop",
