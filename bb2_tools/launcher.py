@@ -831,13 +831,14 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
             specs.append(ProcessSpec(node.name, rec_cmd, policy, stop_stage=1, sigint_grace_s=30.0,
                                      sigterm_grace_s=10.0, ready=ready))
             continue
-        ros = ["--ros-args", "-p", f"mission_file:={mission}"]
+        # The params file goes first: for '/**' keys the last source wins, so the launcher's own -p values
+        # (mission, time mode, sim time) must come after it.
+        ros = ["--ros-args"] + (["--params-file", str(params)] if params is not None else [])
+        ros += ["-p", f"mission_file:={mission}"]
         if node.name == "simulator":
             ros += ["-p", f"time_mode:={mode}"]
         else:
             ros += ["-p", "use_sim_time:=true"]
-        if params is not None:
-            ros += ["--params-file", str(params)]
         ready = None
         if node.name == "simulator" and mode == "lockstep" and monitor is not None:
             ready = Settled(lambda m=monitor: m.publishes("simulator", "/bb2/odom"), settle_s)

@@ -138,8 +138,9 @@ def test_graph_specs_pass_mission_mode_params_and_sim_time(tmp_path):
     assert set(names) == {n.name for n in L.GRAPH_NODES}
     by = {s.name: s for s in specs}
     sim = by["simulator"].argv(0)
-    assert sim[sim.index("--ros-args") + 1:] == ["-p", f"mission_file:={mission}", "-p",
-                                                 "time_mode:=realtime", "--params-file", str(params)]
+    # the params file first: for '/**' keys the last source wins, so the launcher's -p values must follow it
+    assert sim[sim.index("--ros-args") + 1:] == ["--params-file", str(params), "-p", f"mission_file:={mission}",
+                                                 "-p", "time_mode:=realtime"]
     assert by["simulator"].finishes_graph
     for n in ("planner", "path_following", "l1_autopilot", "mixer"):
         assert "use_sim_time:=true" in by[n].argv(0) and f"mission_file:={mission}" in by[n].argv(0)
@@ -451,6 +452,7 @@ def test_bb2_launch_flies_a_short_mission_and_records_the_bag(tmp_path, bb2_grap
     mission = _short_mission(tmp_path, 10.0)
     out = tmp_path / "bags" / "run"
     p = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out),
+                        "--params", str(REPO / "config" / "bb2_graph.yaml"),  # the shipped params file applies
                         "--end-at", "simulator", "--timeout", "100"], cwd=tmp_path, env=_bb2_env(),
                        capture_output=True, text=True, timeout=130)
     assert p.returncode == 0, p.stderr
