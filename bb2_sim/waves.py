@@ -93,3 +93,55 @@ def pressure(wave: Wave, x: np.ndarray, z: np.ndarray, t: float, rho: float, g: 
         return (-rho * g) * z
     return (-rho * g) * (z - wave.amplitude * np.exp(wave.wavenumber * z)
                          * np.sin(wave.wavenumber * np.asarray(x, dtype=float) - wave.omega * t))
+
+
+class PhaseSine:
+    """Vectorised sine of wave phases given in *turn units* (phase / (2 pi / n)), exact to round-off.
+
+    numpy's float64 ``sin`` is a scalar libm call per element on most machines (~9 ns); this evaluates
+    sin(2 pi tau / n) as the angle sum of a tabulated grid angle and a remainder |eps| <= pi / n:
+
+        sin(g + eps) = sin g + sin g (cos eps - 1) + cos g sin eps,
+
+    with the short Taylor series of sin eps and cos eps - 1 truncated far below one ulp (n = 4096:
+    |eps| <= 7.7e-4, first dropped terms eps^5/120 and eps^6/720 are < 3e-18). The result agrees with
+    ``np.sin`` of the same angle to a few ulp; the only other difference is where the argument is rounded.
+    """
+
+    def __init__(self, n: int = 4096):
+        if n < 4096 or n & (n - 1):
+            raise ValueError(f"PhaseSine needs a power of two >= 4096 grid points, got {n}")
+        self.n = n
+        self.turn = 2.0 * math.pi / n            # rad per turn unit
+        # sin and cos of the grid angles from the first octant only (there the rounding of the angle is
+        # relative, so every entry is accurate to an ulp of its own size), unfolded by symmetry
+        j = np.arange(n // 8 + 1) * self.turn
+        s8, c8 = np.sin(j), np.cos(j)
+        r = np.arange(n // 4)
+        lo = r <= n // 8
+        sin_q = np.where(lo, s8[np.minimum(r, n // 8)], c8[np.minimum(n // 4 - r, n // 8)])
+        cos_q = np.where(lo, c8[np.minimum(r, n // 8)], s8[np.minimum(n // 4 - r, n // 8)])
+        self._sin = np.concatenate([sin_q, cos_q, -sin_q, -cos_q])
+        self._cos = np.roll(self._sin, -(n // 4))
+
+    def __call__(self, tau: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """sin(tau * 2 pi / n) for a float64 array tau (turn units); ``out`` may be tau itself."""
+        q = np.rint(tau)
+        idx = q.astype(np.int64)
+        np.bitwise_and(idx, self.n - 1, out=idx)
+        eps = tau - q
+        eps *= self.turn
+        s = self._sin.take(idx)
+        c = self._cos.take(idx)
+        e2 = np.multiply(eps, eps, out=q)
+        c *= eps
+        sin_eps_ratio = e2 * (-1.0 / 6.0)
+        sin_eps_ratio += 1.0
+        c *= sin_eps_ratio                        # cos g * sin eps
+        e4 = np.multiply(e2, e2, out=sin_eps_ratio)
+        e4 *= 1.0 / 24.0
+        e2 *= -0.5
+        e2 += e4                                  # cos eps - 1
+        e2 *= s
+        c += e2                                   # + sin g (cos eps - 1)
+        return np.add(s, c, out=out)
