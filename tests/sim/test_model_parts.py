@@ -176,3 +176,20 @@ def test_frame_conventions_match_the_paper():
     # theta > 0 bow up: NED pitch > 0; phi > 0 starboard up: NED roll < 0 (starboard down positive)
     r, p, _ = frames.euler_native_to_ned(0.1, 0.2, 0.0)
     assert p == pytest.approx(0.2) and r == pytest.approx(-0.1)
+
+
+def test_phase_sine_equals_numpy_sine_to_round_off():
+    """waves.PhaseSine (table + short series, used for the wave pressure) against np.sin, over wave phases far
+    beyond 2 pi and near the zeros, where a relative error would show."""
+    from bb2_sim.waves import PhaseSine
+
+    ps = PhaseSine()
+    rng = np.random.default_rng(3)
+    x = np.concatenate([rng.uniform(-2000.0, 2000.0, 200_000), rng.normal(0, 1e-6, 1000),
+                        np.pi * np.arange(-50, 50) + rng.normal(0, 1e-9, 100)])
+    tau = x / ps.turn
+    got = ps(tau.copy())
+    want = np.sin(tau * ps.turn)
+    # equal up to one rounding of the angle itself (|x| * 2^-52), i.e. as exact as np.sin of a computed phase
+    assert np.all(np.abs(got - want) <= 1e-15 + np.abs(x) * 2.3e-16)
+    assert np.max(np.abs(got - want)[np.abs(x) < 8]) <= 1e-15
