@@ -117,8 +117,33 @@ def enu_arrays_to_state(t: float, p_enu, q_enu_flu, v_flu, w_flu) -> VehicleStat
     )
 
 
-def _diag6(variance: float) -> list[float]:
-    return list(np.diag(np.full(6, float(variance))).ravel())
+@lru_cache(maxsize=16)
+def _diag_cached(n: int, variance: float) -> np.ndarray:
+    a = np.diag(np.full(n, float(variance))).ravel()
+    a.setflags(write=False)
+    return a
+
+
+def _diag6(variance: float) -> np.ndarray:
+    """Row-major 6x6 diagonal covariance (a fresh float64 array; the message field takes it as is)."""
+    return _diag_cached(6, float(variance)).copy()
+
+
+def _diag3(variance: float) -> np.ndarray:
+    """Row-major 3x3 diagonal covariance (a fresh float64 array)."""
+    return _diag_cached(3, float(variance)).copy()
+
+
+_ENU_MEMO: list = [None, None]  # (key, arrays) of the last state converted: odometry then IMU of one state
+
+
+def _enu_arrays_memo(state: VehicleState) -> dict[str, np.ndarray]:
+    """:func:`state_to_enu_arrays`, remembering the last state (the simulator converts each state twice:
+    odometry at t_n, IMU once the step from t_n is integrated).  Keyed on the exact values."""
+    key = (float(state.t), np.asarray(state.as_vector(), dtype=float).tobytes())
+    if _ENU_MEMO[0] != key:
+        _ENU_MEMO[0], _ENU_MEMO[1] = key, state_to_enu_arrays(state)
+    return _ENU_MEMO[1]
 
 
 def state_to_odometry(state: VehicleState, *, frame_id: str = FRAME_ODOM,
@@ -133,8 +158,8 @@ def state_to_odometry(state: VehicleState, *, frame_id: str = FRAME_ODOM,
     from nav_msgs.msg import Odometry
 
     model = sensor_model()["odometry"]
-    a = state_to_enu_arrays(state)
-    p, q, v, w = a["p_enu"], a["q_enu_flu"], a["v_flu"], a["w_flu"]
+    a = _enu_arrays_memo(state)
+    p, q, v, w = a["p_enu"].tolist(), a["q_enu_flu"].tolist(), a["v_flu"].tolist(), a["w_flu"].tolist()
     return Odometry(
         header=_header(state.t, frame_id),
         child_frame_id=child_frame_id,
@@ -182,24 +207,24 @@ def imu_message(state: VehicleState, f_flu, *, frame_id: str = FRAME_BASE_LINK,
     from geometry_msgs.msg import Quaternion, Vector3
     from sensor_msgs.msg import Imu
 
-    model = dict(sensor_model()["imu"])
-    model.update(variances or {})
-    a = state_to_enu_arrays(state)
-    q, w, f = a["q_enu_flu"], a["w_flu"], _vec3(f_flu)
-    eye = np.eye(3).ravel()
+    model = sensor_model()["imu"]
+    if variances:
+        model = {**model, **variances}
+    a = _enu_arrays_memo(state)
+    q, w, f = a["q_enu_flu"].tolist(), a["w_flu"].tolist(), _vec3(f_flu).tolist()
     if orientation_known:
-        q_cov = list(eye * model["orientation_variance_rad2"])
+        q_cov = _diag3(model["orientation_variance_rad2"])
     else:
-        q = np.array([0.0, 0.0, 0.0, 1.0])
-        q_cov = [-1.0] + [0.0] * 8
+        q = [0.0, 0.0, 0.0, 1.0]
+        q_cov = np.array([-1.0] + [0.0] * 8)
     return Imu(
         header=_header(state.t, frame_id),
         orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]),
         orientation_covariance=q_cov,
         angular_velocity=Vector3(x=w[0], y=w[1], z=w[2]),
-        angular_velocity_covariance=list(eye * model["angular_velocity_variance_rad2_s2"]),
+        angular_velocity_covariance=_diag3(model["angular_velocity_variance_rad2_s2"]),
         linear_acceleration=Vector3(x=f[0], y=f[1], z=f[2]),
-        linear_acceleration_covariance=list(eye * model["linear_acceleration_variance_m2_s4"]),
+        linear_acceleration_covariance=_diag3(model["linear_acceleration_variance_m2_s4"]),
     )
 
 
