@@ -10,6 +10,13 @@ publish time is the DDS source timestamp (wall clock).  The header stamps inside
 untouched.  A topic is added to the bag when its first message arrives, with the QoS the
 publishers offer at that moment (``offered_qos_profiles``) and the type's RIHS01 hash.
 
+Spinning: the recorder waits on its raw subscriptions itself (:meth:`Recorder.spin_once`: one rcl wait
+set, every ready message taken with its info and written in receive order); rclpy's EventsExecutor does
+not pass the message info to callbacks in this rclpy, and the SingleThreadedExecutor rebuilds its wait set
+per wake-up, which cost the recorder more CPU than the bag writing on a 2-core machine.  With
+``--use-sim-time`` the log time is the last ``/clock`` taken before the message (rclpy's time source
+does the same, one callback later).
+
 Stopping: SIGINT or SIGTERM finish the bag (summary, ``rosbag2`` metadata record, metadata.yaml)
 and exit 0.  A SIGKILL loses at most the open chunk (``--chunk-size`` bytes, or
 ``--flush-period`` seconds of data); ``bb2_tools.bagfile.recover`` repairs such a bag.
@@ -22,8 +29,8 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import functools
 import signal
+import struct
 import sys
 import threading
 import time
@@ -34,6 +41,7 @@ from bb2_msgs_py.contract import ContractError, TopicSpec, message_class, select
 from bb2_tools.bagfile import BagError, BagWriter, qos_entry
 
 ODOM_TOPIC = "/bb2/odom"
+CLOCK_TOPIC = "/clock"
 TF_TOPIC = "/tf"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 # tf2_ros::DynamicBroadcasterQoS: reliable, volatile, keep last 100
@@ -86,27 +94,35 @@ class Recorder:
 
     def __init__(self, bag: BagWriter, topics: Sequence[TopicSpec], *, tf_from_odom: bool = True,
                  flush_period_s: float = 1.0, queue_depth: int = 1000, node_name: str = "bb2_recorder",
-                 parameter_overrides: list | None = None):
+                 use_sim_time: bool = False):
         from rclpy.clock import Clock, ClockType
         from rclpy.node import Node
         from rclpy.serialization import deserialize_message
 
         self.bag = bag
-        self.node = Node(node_name, parameter_overrides=parameter_overrides or [])
+        # parameter services are not spun (the recorder waits on its subscriptions only, see spin_once)
+        self.node = Node(node_name, start_parameter_services=False)
         self._deserialize = deserialize_message
         self._odom_cls = message_class("nav_msgs/msg/Odometry")
         self.tf_from_odom = tf_from_odom and any(t.name == ODOM_TOPIC for t in topics)
+        self.use_sim_time = bool(use_sim_time)
+        self._sim_ns = 0  # the last /clock taken (ROS time 0 until the first, as rclpy's time source)
+        self._system_clock = Clock(clock_type=ClockType.SYSTEM_TIME)
         self._lock = threading.Lock()
-        self._subs = []
+        self._subs = []  # (subscription, spec or None: /clock for the time only)
         self.specs = {t.name: t for t in topics if not t.bag_only}
         for spec in self.specs.values():
-            self._subs.append(self.node.create_subscription(
-                message_class(spec.type), spec.name, functools.partial(self._on_message, spec),
-                subscription_qos(spec, queue_depth), raw=True))
-        self._flush_timer = None
-        if flush_period_s > 0:
-            self._flush_timer = self.node.create_timer(flush_period_s, self._flush,
-                                                       clock=Clock(clock_type=ClockType.STEADY_TIME))
+            self._subs.append((self.node.create_subscription(
+                message_class(spec.type), spec.name, self._unused_callback,
+                subscription_qos(spec, queue_depth), raw=True), spec))
+        if self.use_sim_time and CLOCK_TOPIC not in self.specs:
+            from bb2_msgs_py.contract import qos_profile
+            self._subs.append((self.node.create_subscription(
+                message_class("rosgraph_msgs/msg/Clock"), CLOCK_TOPIC, self._unused_callback,
+                qos_profile(CLOCK_TOPIC), raw=True), None))
+        self.flush_period_s = float(flush_period_s)
+        self._next_flush = time.monotonic() + self.flush_period_s
+        self._wait_set = None
 
     def _offered_qos(self, name: str) -> list[dict[str, Any]]:
         try:
@@ -115,9 +131,52 @@ class Recorder:
             self.node.get_logger().warning(f"cannot read offered QoS of {name}: {exc}")
             return []
 
+    @staticmethod
+    def _unused_callback(_data) -> None:  # pragma: no cover - spin_once takes the messages itself
+        pass
+
+    def spin_once(self, timeout_s: float) -> int:
+        """Wait up to ``timeout_s`` for messages, take every one waiting (with its info) and write them
+        in the order they were received; flush the open chunk every ``flush_period_s``.  Returns the
+        number of messages taken."""
+        from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+        ctx = self.node.context
+        if self._wait_set is None:
+            self._wait_set = _rclpy.WaitSet(len(self._subs), 0, 0, 0, 0, 0, ctx.handle)
+        ws = self._wait_set
+        ws.clear_entities()
+        for sub, _spec in self._subs:
+            ws.add_subscription(sub.handle)
+        ws.wait(max(int(timeout_s * 1e9), 0))
+        ready = set(ws.get_ready_entities("subscription"))
+        taken = []
+        for sub, spec in self._subs:
+            if sub.handle.pointer not in ready:
+                continue
+            while True:
+                got = sub.handle.take_message(sub.msg_type, True)
+                if got is None:
+                    break
+                data, info = got
+                taken.append((int(info.get("received_timestamp", 0)), len(taken), spec, data, info))
+        taken.sort(key=lambda m: (m[0], m[1]))
+        for _recv, _k, spec, data, info in taken:
+            if self.use_sim_time and (spec is None or spec.name == CLOCK_TOPIC):
+                sec, nanosec = struct.unpack_from("<iI", data, 4)
+                self._sim_ns = sec * 1_000_000_000 + nanosec
+            if spec is not None:
+                self._on_message(spec, data, info)
+        if self.flush_period_s > 0 and time.monotonic() >= self._next_flush:
+            self._next_flush = time.monotonic() + self.flush_period_s
+            self._flush()
+        return len(taken)
+
+    def _now_ns(self) -> int:
+        return self._sim_ns if self.use_sim_time else self._system_clock.now().nanoseconds
+
     def _on_message(self, spec: TopicSpec, data: bytes, info: dict) -> None:
-        # info must stay a required argument: rclpy passes the message info only to callbacks that need two
-        t_ns = self.node.get_clock().now().nanoseconds
+        t_ns = self._now_ns()
         pub_ns = int(info.get("source_timestamp", t_ns)) if isinstance(info, dict) else t_ns
         with self._lock:
             if spec.name not in self.bag.topics:
@@ -166,8 +225,6 @@ def _parse(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point: record until SIGINT/SIGTERM, then finish the bag. Returns the exit code."""
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
     from rclpy.signals import SignalHandlerOptions
 
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -191,21 +248,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     rclpy.init(args=["bb2_recorder", *ros_argv], signal_handler_options=SignalHandlerOptions.NO)
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if args.use_sim_time else []
     rec = Recorder(bag, specs, tf_from_odom=not args.no_tf, flush_period_s=args.flush_period,
-                   queue_depth=args.depth, parameter_overrides=overrides)
-    executor = SingleThreadedExecutor()
-    executor.add_node(rec.node)
+                   queue_depth=args.depth, use_sim_time=args.use_sim_time)
     print(f"bb2-record: recording {len(specs)} topics into {out}", flush=True)
     code = 0
     try:
         while not stop.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=0.05)
+            rec.spin_once(0.05)
     except Exception as exc:  # report, then still finish the bag
         print(f"bb2-record: error while recording: {exc!r}", file=sys.stderr)
         code = 1
     finally:
-        executor.remove_node(rec.node)
         path = rec.close()
         counts = {n: t.message_count for n, t in bag.topics.items()}
         print(f"bb2-record: wrote {bag.message_count} messages to {path}: {counts}", flush=True)
