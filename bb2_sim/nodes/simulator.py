@@ -11,6 +11,9 @@ Parameters (``config/bb2_graph.yaml`` lists them all with their defaults):
                        time without an answer (controllers replay their cached answer, never step twice;
                        covers discovery at start-up and a best-effort odometry sample lost under load).
 ``startup_timeout_s``  lockstep: the timeout of the very first step (nodes still starting).
+``startup_settle_s``   lockstep: hold the first step this long (wall) after its first complete answer,
+                       re-sending the state at t = 0 (the controllers replay their cached answers), so a
+                       reader matched late (the recorder and a controller that just started) misses none.
 ``min_state_subscribers`` publish the first state (start stepping) only once this many readers of
                        ``/bb2/state_native`` are discovered (e.g. 3: path_following, l1_autopilot, recorder), at
                        most ``startup_timeout_s``; 0 = start at once.
@@ -88,6 +91,10 @@ class SimulatorShell:
             "lockstep_retry_s", 0.1, "lockstep: wall s before re-sending an unanswered /bb2/state_native"))
         self.startup_timeout_s = require_positive("startup_timeout_s", P(
             "startup_timeout_s", 30.0, "lockstep: timeout of the first step (graph still starting)"))
+        self.startup_settle_s = require_positive("startup_settle_s", P(
+            "startup_settle_s", 0.5, "lockstep: hold the first step this long after its first answer"),
+            allow_zero=True)
+        self._first_answer_wall: float | None = None
         self.command_timeout_s = require_positive("command_timeout_s", P(
             "command_timeout_s", 0.5, "realtime: wall s without a valid command before the failsafe"))
         self.max_command_age_s = require_positive("max_command_age_s", P(
@@ -278,6 +285,13 @@ class SimulatorShell:
 
     def _maybe_advance(self) -> None:
         if self._ans_planes is not None and self._ans_rps is not None and self._stepping():
+            if self.sim.n == 0 and self.startup_settle_s > 0:  # let late endpoint matches settle (replays)
+                now = time.monotonic()
+                if self._first_answer_wall is None:
+                    self._first_answer_wall = now
+                if now - self._first_answer_wall < self.startup_settle_s:
+                    self._ans_planes = self._ans_rps = None  # wait for the answers to the next re-send
+                    return
             planes, rps = self._ans_planes, self._ans_rps
             self._set_failsafe(False, "")
             self._advance(planes, rps)
