@@ -47,6 +47,14 @@ class RomParameters:
     hc: dict                      # hard-coded force coefficients
     provenance: str
 
+    def __post_init__(self) -> None:
+        # plain-float copies for the per-plane scalar arithmetic of planes.plane_flow
+        object.__setattr__(self, "plane_points_list", [tuple(r) for r in self.plane_points_body.tolist()])
+        object.__setattr__(self, "plane_spans_list", [tuple(r) for r in self.plane_spans_body.tolist()])
+        object.__setattr__(self, "plane_lift_dirs_list", [tuple(r) for r in self.plane_lift_dirs_body.tolist()])
+        object.__setattr__(self, "plane_incidence_gain_list", self.plane_incidence_gain.tolist())
+        object.__setattr__(self, "hull_axis_list", tuple(self.hull_axis_body.tolist()))
+
     @property
     def q2(self) -> float:
         return 0.5 * self.rho * self.L ** 2

@@ -11,7 +11,6 @@ import math
 import numpy as np
 
 from .parameters import RomParameters
-from .frames import cross
 from .tables import RomTables
 
 RAD2DEG = 180.0 / math.pi
@@ -21,25 +20,42 @@ def plane_flow(V: np.ndarray, omega: np.ndarray, uw_planes: np.ndarray, params: 
                guard: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Relative speed UeX_i (m/s) and geometric incidence aX_i (deg) at the five planes.
 
-    ``guard`` (zero-speed guard, quirk Q13): at zero relative speed the incidence is 0 instead of NaN.
+    Per plane (SPEC 3.2): ur = -(V + omega x r_i) + uw_i, UeX = |ur|, np = (nh.ur) nh + (n_i.ur) n_i,
+    c = np.ur / (|np| |ur|), aX = acos(c) k_i (0 when c >= 1), negative when d_i.ur < 0. Plain float
+    arithmetic on the five 3-vectors (numpy's per-call overhead dominates at this size).
+
+    ``guard`` (zero-speed guard, quirk Q13): at zero relative speed the incidence is 0. Without it the
+    authors' division by zero stands (NaN, or ZeroDivisionError/ValueError from the float arithmetic: the
+    integrator reports either as a non-finite model evaluation).
     """
-    r = params.plane_points_body
-    ur = -(V + cross(omega, r)) + uw_planes               # (5, 3)
-    UeX = np.sqrt(np.einsum("ij,ij->i", ur, ur))
-    nh = params.hull_axis_body
-    n = params.plane_spans_body
-    a = ur @ nh
-    b = np.einsum("ij,ij->i", n, ur)
-    npj = a[:, None] * nh + b[:, None] * n
-    nnp = np.sqrt(np.einsum("ij,ij->i", npj, npj))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        c = np.einsum("ij,ij->i", npj, ur) / (nnp * UeX)
-    if guard:
-        c = np.where(np.isfinite(c), np.clip(c, -1.0, 1.0), 1.0)
-    with np.errstate(invalid="ignore"):
-        aX = np.where(c >= 1.0, 0.0, np.arccos(np.minimum(c, 1.0)) * RAD2DEG * params.plane_incidence_gain)
-    side = np.einsum("ij,ij->i", params.plane_lift_dirs_body, ur)
-    aX = np.where(side < 0, -aX, aX)
+    u, v, w = float(V[0]), float(V[1]), float(V[2])
+    p, q, r = float(omega[0]), float(omega[1]), float(omega[2])
+    nh0, nh1, nh2 = params.hull_axis_list
+    UeX = np.empty(5)
+    aX = np.empty(5)
+    for i, ((rx, ry, rz), (n0, n1, n2), (d0, d1, d2), k, (w0, w1, w2)) in enumerate(zip(
+            params.plane_points_list, params.plane_spans_list, params.plane_lift_dirs_list,
+            params.plane_incidence_gain_list, uw_planes.tolist())):
+        ux = -(u + (q * rz - r * ry)) + w0
+        uy = -(v + (r * rx - p * rz)) + w1
+        uz = -(w + (p * ry - q * rx)) + w2
+        s = math.sqrt(ux * ux + uy * uy + uz * uz)
+        a = ux * nh0 + uy * nh1 + uz * nh2
+        b = n0 * ux + n1 * uy + n2 * uz
+        px, py, pz = a * nh0 + b * n0, a * nh1 + b * n1, a * nh2 + b * n2
+        npn = math.sqrt(px * px + py * py + pz * pz)
+        den = npn * s
+        if guard and not den > 0.0:
+            c = 1.0
+        else:
+            c = (px * ux + py * uy + pz * uz) / den
+            if guard:
+                c = -1.0 if c < -1.0 else c
+        ang = 0.0 if c >= 1.0 else math.acos(c) * RAD2DEG * k
+        if d0 * ux + d1 * uy + d2 * uz < 0:
+            ang = -ang
+        UeX[i] = s
+        aX[i] = ang
     return UeX, aX
 
 
