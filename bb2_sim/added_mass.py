@@ -6,13 +6,20 @@ added mass acts as an explicit force with a one-step lag, exactly as the authors
 from __future__ import annotations
 
 import numpy as np
-from .frames import cross
 
 
 def section_relative_velocity(V: np.ndarray, omega: np.ndarray, uw_sections: np.ndarray,
                               r_sections: np.ndarray) -> np.ndarray:
     """urel_i = uw_i - (V + omega x r_i), (15, 3), native body axes (m/s)."""
-    return uw_sections - (V + cross(omega, r_sections))
+    p, q, r = omega
+    skew_T = np.array([[0.0, r, -q], [-r, 0.0, p], [q, -p, 0.0]])   # r_i @ skew_T = omega x r_i
+    return uw_sections - (V + r_sections @ skew_T)
+
+
+def moment_of_forces(r_points: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """sum_i r_i x F_i for (n, 3) points and forces, from the 3x3 matrix A = r^T F (one product)."""
+    A = r_points.T @ F
+    return np.array([A[1, 2] - A[2, 1], A[2, 0] - A[0, 2], A[0, 1] - A[1, 0]])
 
 
 class DerivativeMemory:

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .actuators import ActuatorOutputs
-from .added_mass import DerivativeMemory, section_relative_velocity
-from .frames import cross, euler_rate_matrix, rotation_native
+from .added_mass import DerivativeMemory, moment_of_forces, section_relative_velocity
+from .frames import euler_rate_matrix, rotation_native
 from .hull_forces import hull_loads
 from .hydrostatics import PressureIntegrator
 from .parameters import RomParameters, load_parameters
@@ -124,7 +124,7 @@ class BB2Model:
         urel = section_relative_velocity(V, omega, uw_sec, P.section_points_body)
         acc = dmem.derivative(t, urel)
         dF = P.Cvm * acc
-        F_vm = np.concatenate([dF.sum(axis=0), cross(P.section_points_body, dF).sum(axis=0)])
+        F_vm = np.concatenate([dF.sum(axis=0), moment_of_forces(P.section_points_body, dF)])
 
         # propeller (6)
         prop = propeller_load(u, z, act.rps, P, self.tables.thrust_deduction,
