@@ -506,3 +506,48 @@ def test_bb2_launch_reports_a_killed_simulator_and_exits_nonzero(tmp_path, bb2_g
     assert "simulator up" in err.split("node 'simulator' ended")[1]  # its last log lines
     assert not _children(p.pid)
     assert (out / "metadata.yaml").is_file()  # the recorder, stopped last, finished the bag
+
+
+@pytest.mark.ros
+def test_bb2_launch_each_node_killed_in_turn_is_reported_and_restarted(tmp_path, bb2_graph_available):
+    """Issue 5: every node of the real graph killed in turn (SIGKILL) is reported with its cause and handled by
+    its policy (here restart for all); the graph keeps running and a final Ctrl-C still finishes the bags."""
+    mission = _short_mission(tmp_path, 400.0)
+    out = tmp_path / "bags" / "run"
+    p = subprocess.Popen([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out),
+                          "--restart", "all=restart:2", "--timeout", "200"], cwd=tmp_path, env=_bb2_env(),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    victims = ["planner", "path_following", "l1_autopilot", "mixer", "recorder", "simulator"]
+    seen = ""
+    try:
+        seen += _wait_for_line(p, lambda line: re.search(r"sim +[1-9][0-9.]* s", line) is not None, timeout=90)
+        for name in victims:
+            pids = [pid for pid, cmd in _children(p.pid).items()
+                    if re.search(rf"\b{name}\b", cmd) and "launcher" not in cmd]
+            assert len(pids) == 1, (name, _children(p.pid))
+            os.kill(pids[0], signal.SIGKILL)
+            seen += _wait_for_line(p, lambda line, n=name: f"policy 'restart' for '{n}'" in line, timeout=60)
+            # the restarted node is running again before the next one is killed
+            t0 = time.monotonic()
+            while time.monotonic() - t0 < 30:
+                alive = [pid for pid, cmd in _children(p.pid).items() if re.search(rf"\b{name}\b", cmd)]
+                if alive and alive != pids:
+                    break
+                time.sleep(0.2)
+            else:
+                raise AssertionError(f"{name} was not restarted: {_children(p.pid)}")
+        time.sleep(2.0)
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=90)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    err = seen + err
+    assert p.returncode == 130, err[-3000:]
+    for name in victims:
+        assert f"node '{name}' ended (killed by SIGKILL)" in err, name
+        assert f"policy 'restart' for '{name}'" in err, name
+    assert not _children(p.pid)
+    assert (out / "metadata.yaml").is_file()                      # the first recorder's bag was repaired
+    assert (out.with_name("run_r1") / "metadata.yaml").is_file()  # the restarted recorder finished its own
