@@ -36,7 +36,7 @@ Exit status: 0 done; 1 runtime error; 2 bad input (bag, topics, options); 3 open
 Usage::
 
     bb2-replay BAG [--rate R] [--start-offset S] [--topics T ...] [--pause] [--loop] [--domain-id N]
-               [--delay S] [--no-clock]
+               [--wait-for-readers S] [--delay S] [--no-clock]
     bb2-replay BAG --open-loop [--mission FILE.yaml] [--start-offset S] [--max-deviation M]
 """
 from __future__ import annotations
@@ -574,6 +574,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--loop", action="store_true", help="play again from the start offset at the end, until Ctrl-C")
     p.add_argument("--domain-id", type=int, default=None, metavar="N",
                    help="ROS domain id (default: ROS_DOMAIN_ID of the environment)")
+    p.add_argument("--wait-for-readers", type=float, default=0.0, metavar="S",
+                   help="before playing, wait up to S wall seconds until every republished topic has a matched "
+                        "subscriber (default 0: do not wait)")
     p.add_argument("--delay", type=float, default=0.5, metavar="S",
                    help="wall seconds to wait after start-up for discovery before playing (default 0.5)")
     p.add_argument("--no-clock", action="store_true",
@@ -666,6 +669,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"bb2-replay: pid {os.getpid()}: playing {len(player.topics)} topics of {args.bag} at {args.rate:g}x "
               f"from bag time {player.start_ns * 1e-9:.3f} s{' (paused)' if args.pause else ''}; "
               f"pause/resume: kill -USR1 {os.getpid()} or service {PAUSE_SERVICE}", flush=True)
+        if args.wait_for_readers > 0:
+            deadline = time.monotonic() + args.wait_for_readers
+            while time.monotonic() < deadline and not all(
+                    pub.get_subscription_count() > 0 for pub in player.pubs.values()):
+                time.sleep(0.05)
         if args.delay > 0:
             paused = player.clock.paused
             player.clock.set_paused(True)
