@@ -32,6 +32,8 @@ Evaluation uses de Casteljau (stable for the degree-99 circle); never the power 
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -246,6 +248,12 @@ class PathPoint:
     torsion: float         #: [1/m] (0 for d < 3)
 
 
+@lru_cache(maxsize=16)
+def _gauss_legendre(nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre nodes and weights on [-1, 1] (cached: the path follower asks every tick)."""
+    return special.roots_legendre(nodes)
+
+
 class BernsteinPath:
     """A Bernstein curve ``p: [t0, tf] -> R^d`` with control points in metres and time in seconds.
 
@@ -417,7 +425,7 @@ class BernsteinPath:
         t_b = self.tf if t_b is None else float(t_b)
         if t_b < t_a:
             return -self.arc_length(t_b, t_a, panels=panels, nodes=nodes)
-        x, w = special.roots_legendre(nodes)
+        x, w = _gauss_legendre(nodes)
         edges = np.linspace(t_a, t_b, panels + 1)
         half = 0.5 * np.diff(edges)
         mid = 0.5 * (edges[:-1] + edges[1:])
