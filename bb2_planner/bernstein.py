@@ -32,9 +32,8 @@ Evaluation uses de Casteljau (stable for the degree-99 circle); never the power 
 """
 from __future__ import annotations
 
-from functools import lru_cache
-
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Sequence
 
 import numpy as np
