@@ -80,12 +80,12 @@ def plane_loads(dXe: np.ndarray, UeX: np.ndarray, u: float, q: float, z: float, 
         s = float(UeX[i])
         s2 = s * s
         if i < 4:
-            X += q2 * (T["X"][i](d, -s) + dXiuq) * s2
-            Y += rho * L ** 2 * T["Y"][i](d, zs) * s2
-            K += rho * L ** 3 * T["K"][i](d, zs, s) * s2
-            N += rho * L ** 3 * T["N"][i](d, zN) * s2
+            X += q2 * (T["X"][i].lookup(d, -s) + dXiuq) * s2
+            Y += rho * L ** 2 * T["Y"][i].lookup(d, zs) * s2
+            K += rho * L ** 3 * T["K"][i].lookup(d, zs, s) * s2
+            N += rho * L ** 3 * T["N"][i].lookup(d, zN) * s2
         else:
-            X += q2 * T["X"][i](d, -s) * s2
-        Z += q2 * T["Z"][i](d, zs) * s2
-        M += q3 * T["M"][i](d, zs) * s2
+            X += q2 * T["X"][i].lookup(d, -s) * s2
+        Z += q2 * T["Z"][i].lookup(d, zs) * s2
+        M += q3 * T["M"][i].lookup(d, zs) * s2
     return X, Y, Z, K, M, N

@@ -125,11 +125,13 @@ class LookupTable:
         return len(self.breakpoints)
 
     def __post_init__(self) -> None:
-        self._fn = _compile(self)
+        self.lookup = _compile(self)
+        """The scalar lookup itself: ``table.lookup(x1, x2, ...)`` (what ``table(...)`` calls; the ROM's force
+        functions call it directly to skip one Python call per lookup)."""
 
     def __call__(self, *x: float) -> float:
         """Scalar lookup (inputs in axis order, raw; clamps applied here), times the gain."""
-        return self._fn(*x)
+        return self.lookup(*x)
 
     def evaluate_array(self, *x: np.ndarray) -> np.ndarray:
         """Vectorised lookup over broadcast input arrays (same semantics as the scalar call)."""
