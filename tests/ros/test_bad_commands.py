@@ -4,11 +4,9 @@ and malformed params / mission files (non-zero exit, one clear message)."""
 from __future__ import annotations
 
 import math
-import os
 import random
 import signal
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -24,23 +22,11 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
+from rosenv import spawn_node  # noqa: E402  (tests/ros/rosenv.py)
+
 REPO = Path(__file__).resolve().parents[2]
 MISSION = "path: circle_r400\nstack: rate_2022\nduration_s: 300\n"
 PLANE_LIMIT_RAD = math.radians(30.0)
-
-
-def _env(domain_id: int) -> dict[str, str]:
-    env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(domain_id)
-    env["AMENT_PREFIX_PATH"] = env.get("AMENT_PREFIX_PATH") or sys.prefix
-    env["RMW_IMPLEMENTATION"] = "rmw_fastrtps_cpp"
-    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
-    return env
-
-
-def _spawn(domain_id: int, module: str, *ros_args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", module, "--ros-args", *ros_args], cwd=REPO,
-                            env=_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
 class Bench:
@@ -155,7 +141,7 @@ def bench(tmp_path):
     procs: list[subprocess.Popen] = []
 
     def start(**params) -> subprocess.Popen:
-        p = _spawn(domain_id, "bb2_sim.nodes.simulator", "--params-file",
+        p = spawn_node("bb2_sim.nodes.simulator", domain_id, "--params-file",
                    _params(tmp_path, mission_file=str(mission), **params))
         procs.append(p)
         return p
@@ -273,7 +259,7 @@ def test_malformed_params_or_mission_exit_nonzero(tmp_path, case):
         args, expect = ["-p", f"mission_file:={tmp_path / 'none.yaml'}"], "cannot read mission file"
     else:
         args, expect = [], "'mission_file' is empty"
-    p = _spawn(domain_id, "bb2_sim.nodes.simulator", *args)
+    p = spawn_node("bb2_sim.nodes.simulator", domain_id, *args)
     out, _ = p.communicate(timeout=30)
     assert p.returncode == 2, out
     assert "simulator: error:" in out and expect in out, out

@@ -27,6 +27,8 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
+from rosenv import ros_env  # noqa: E402  (tests/ros/rosenv.py)
+
 REPO = Path(__file__).resolve().parents[2]
 RUN_HIL = REPO / "examples" / "hil" / "run_hil.py"
 MISSION = REPO / "missions" / "canyon.yaml"
@@ -87,11 +89,6 @@ def _quiet_listener(attempts: int = 8) -> tuple[int, Listener]:
     raise AssertionError("no free ROS domain in 100..230")
 
 
-def _env() -> dict[str, str]:
-    env = dict(os.environ)
-    env.update(RMW_IMPLEMENTATION="rmw_fastrtps_cpp", AMENT_PREFIX_PATH=env.get("AMENT_PREFIX_PATH") or sys.prefix,
-               PYTHONPATH=str(REPO) + os.pathsep + env.get("PYTHONPATH", ""))
-    return env
 
 
 def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
@@ -101,7 +98,7 @@ def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
     summary = tmp_path / "hil.json"
     try:
         proc = subprocess.run([sys.executable, str(RUN_HIL), "--mission", str(MISSION), "--duration", str(DURATION_S),
-                               "--domain-id", str(domain_id), "--summary", str(summary)], cwd=REPO, env=_env(),
+                               "--domain-id", str(domain_id), "--summary", str(summary)], cwd=REPO, env=ros_env(),
                               capture_output=True, text=True, timeout=DURATION_S + 90)
         time.sleep(0.3)
     finally:
@@ -151,7 +148,7 @@ def test_external_autopilot_on_another_network_host(tmp_path):
     before = set(subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout.split())
     proc = subprocess.run([sys.executable, str(RUN_HIL), "--mission", str(MISSION), "--duration", str(duration),
                            "--netns", "--domain-id", str(random.randint(100, 230)), "--summary", str(summary)],
-                          cwd=REPO, env=_env(), capture_output=True, text=True, timeout=duration + 90)
+                          cwd=REPO, env=ros_env(), capture_output=True, text=True, timeout=duration + 90)
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out[-4000:]
     assert "two network namespaces" in out

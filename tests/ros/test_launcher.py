@@ -22,6 +22,8 @@ import yaml
 
 from bb2_tools import launcher as L
 
+from rosenv import ros_env  # noqa: E402  (tests/ros/rosenv.py)
+
 REPO = Path(__file__).resolve().parents[2]
 
 FAKE_NODE = r'''
@@ -408,15 +410,6 @@ def test_restart_policy_restarts_a_crashed_node_and_mission_completes(graph):
 
 
 # ------------------------------------------------------------------------ the real BB2 graph
-def _bb2_env() -> dict[str, str]:
-    env = dict(os.environ)
-    env["AMENT_PREFIX_PATH"] = env.get("AMENT_PREFIX_PATH") or sys.prefix
-    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
-    env["PYTHONUNBUFFERED"] = "1"
-    return env
-
-
 def _short_mission(tmp_path: Path, duration_s: float) -> Path:
     f = tmp_path / f"straight_{duration_s:g}s.yaml"
     f.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: straight_short\nduration_s: {duration_s}\n")
@@ -453,7 +446,7 @@ def test_bb2_launch_flies_a_short_mission_and_records_the_bag(tmp_path, bb2_grap
     out = tmp_path / "bags" / "run"
     p = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out),
                         "--params", str(REPO / "config" / "bb2_graph.yaml"),  # the shipped params file applies
-                        "--end-at", "simulator", "--timeout", "100"], cwd=tmp_path, env=_bb2_env(),
+                        "--end-at", "simulator", "--timeout", "100"], cwd=tmp_path, env=ros_env(),
                        capture_output=True, text=True, timeout=130)
     assert p.returncode == 0, p.stderr
     assert "mission complete" in p.stderr and f"bag:   {out}" in p.stderr and f"logs:  {out / 'logs'}" in p.stderr
@@ -486,7 +479,7 @@ def test_bb2_launch_reports_a_killed_simulator_and_exits_nonzero(tmp_path, bb2_g
     mission = _short_mission(tmp_path, 400.0)
     out = tmp_path / "bags" / "run"
     p = subprocess.Popen([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out),
-                          "--timeout", "100"], cwd=tmp_path, env=_bb2_env(), stdout=subprocess.PIPE,
+                          "--timeout", "100"], cwd=tmp_path, env=ros_env(), stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
     try:
         seen = _wait_for_line(p, lambda line: re.search(r"sim +[1-9][0-9.]* s", line) is not None, timeout=90)
@@ -515,7 +508,7 @@ def test_bb2_launch_each_node_killed_in_turn_is_reported_and_restarted(tmp_path,
     mission = _short_mission(tmp_path, 400.0)
     out = tmp_path / "bags" / "run"
     p = subprocess.Popen([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out),
-                          "--restart", "all=restart:2", "--timeout", "200"], cwd=tmp_path, env=_bb2_env(),
+                          "--restart", "all=restart:2", "--timeout", "200"], cwd=tmp_path, env=ros_env(),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     victims = ["planner", "path_following", "l1_autopilot", "mixer", "recorder", "simulator"]
     seen = ""

@@ -6,11 +6,8 @@ trajectory CSV (every step, %.17g) and the test also compares the odometry it re
 """
 from __future__ import annotations
 
-import os
 import random
 import signal
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -24,25 +21,13 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
+from rosenv import spawn_node  # noqa: E402  (tests/ros/rosenv.py)
+
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = REPO / "config" / "bb2_graph.yaml"
 CONTROLLERS = ("bb2_planner.nodes.planner", "bb2_control.nodes.path_following",
                "bb2_control.nodes.l1_autopilot", "bb2_control.nodes.mixer")
 DURATION_S = 20.0
-
-
-def _env(domain_id: int) -> dict[str, str]:
-    env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(domain_id)
-    env["AMENT_PREFIX_PATH"] = env.get("AMENT_PREFIX_PATH") or sys.prefix
-    env["RMW_IMPLEMENTATION"] = "rmw_fastrtps_cpp"
-    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
-    return env
-
-
-def _spawn(module: str, domain_id: int, *ros_args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", module, "--ros-args", *ros_args], cwd=REPO,
-                            env=_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
 class Listener:
@@ -114,14 +99,14 @@ def test_graph_lockstep_equals_library_runner(tmp_path, state_source):
               "-p", f"state_source:={state_source}"]
     ref = _library_trajectory(mission)
     listener = Listener(domain_id)
-    procs = {m: _spawn(m, domain_id, *common) for m in CONTROLLERS}
+    procs = {m: spawn_node(m, domain_id, *common) for m in CONTROLLERS}
     sim = None
     try:
         n_readers = 3 if state_source == "native" else 1  # (path_following, l1_autopilot +) this listener
         overrides = tmp_path / "overrides.yaml"  # a second params file beats the node keys of the first
         overrides.write_text(f"simulator:\n  ros__parameters:\n    trajectory_csv: {csv_file}\n"
                              f"    exit_at_end: true\n    min_state_subscribers: {n_readers}\n")
-        sim = _spawn("bb2_sim.nodes.simulator", domain_id, *common, "--params-file", str(overrides))
+        sim = spawn_node("bb2_sim.nodes.simulator", domain_id, *common, "--params-file", str(overrides))
         out, _ = sim.communicate(timeout=50)
         assert sim.returncode == 0, out
         time.sleep(0.6)  # last status round

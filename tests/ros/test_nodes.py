@@ -3,7 +3,6 @@ applies the parameters of a params file; plus the exact contract conversions the
 from __future__ import annotations
 
 import math
-import os
 import random
 import signal
 import subprocess
@@ -24,18 +23,13 @@ from bb2_msgs_py.contract import message_class, qos_profile, topic  # noqa: E402
 from bb2_sim.state import VehicleState  # noqa: E402
 from bb2_tools.node_common import remap_rules  # noqa: E402
 
+from rosenv import ros_env  # noqa: E402  (tests/ros/rosenv.py)
+
 REPO = Path(__file__).resolve().parents[2]
 MISSION = "path: circle_r400\nstack: rate_2022\nduration_s: 30\n"
 
 
 # ----------------------------------------------------------------------------------------- harness
-def _env(domain_id: int) -> dict[str, str]:
-    env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(domain_id)
-    env["AMENT_PREFIX_PATH"] = env.get("AMENT_PREFIX_PATH") or sys.prefix
-    env["RMW_IMPLEMENTATION"] = "rmw_fastrtps_cpp"
-    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
-    return env
 
 
 class Probe:
@@ -113,7 +107,7 @@ def graph(tmp_path):
 
     def start(module: str, *ros_args: str) -> subprocess.Popen:
         p = subprocess.Popen([sys.executable, "-m", module, "--ros-args", *ros_args], cwd=REPO,
-                             env=_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                             env=ros_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         procs.append(p)
         return p
 

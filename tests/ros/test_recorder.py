@@ -1,7 +1,6 @@
 """Real DDS: publishers in this process, the recorder as a separate process, the bag checked after."""
 from __future__ import annotations
 
-import os
 import random
 import signal
 import subprocess
@@ -23,6 +22,8 @@ from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 from bb2_sim.state import VehicleState  # noqa: E402
 from bb2_tools.bagfile import BagReader, recover  # noqa: E402
 
+from rosenv import ros_env  # noqa: E402  (tests/ros/rosenv.py)
+
 REPO = Path(__file__).resolve().parents[2]
 N_ODOM, N_CMD = 60, 20
 SIM_T0 = 1000.0  # /clock published before the data: log times must be sim time
@@ -33,18 +34,9 @@ def domain_id() -> int:
     return random.randint(100, 200)
 
 
-def _env(domain_id: int) -> dict[str, str]:
-    env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(domain_id)
-    env["AMENT_PREFIX_PATH"] = env.get("AMENT_PREFIX_PATH") or sys.prefix
-    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
-    return env
-
-
 def _start_recorder(out: Path, domain_id: int, *extra: str) -> subprocess.Popen:
     proc = subprocess.Popen([sys.executable, "-m", "bb2_tools.recorder", "--out", str(out), *extra],
-                            cwd=REPO, env=_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            cwd=REPO, env=ros_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     line = proc.stdout.readline()
     if "recording" not in line:
