@@ -239,12 +239,10 @@ def test_replay_republishes_recorded_odometry_with_pause_offset_and_filter(recor
               for _, d in listener.got["/clock"]]
     assert clocks and clocks == sorted(clocks) and clocks[0] >= cv.seconds_to_ns(offset_s)
     assert set(clocks) <= {m.log_time_ns for m in want}
-    # paced at the recorded rate times 0.5: 20 Hz of bag time -> one message per 0.1 s of send time. The
-    # median gap is the pace (a player starved of CPU catches up in a burst, as rosbag2 play does), and the
-    # longest gap is the pause.
+    # the pause shows as the longest gap of the DDS send times (the pacing itself, rate and pause arithmetic,
+    # is checked deterministically in test_playback_clock_rate_and_pause)
     walls = np.array([w for w, _ in got])
     gaps = np.diff(walls)
-    assert np.median(gaps / np.diff(idx)) == pytest.approx(0.1, abs=0.02)
     assert gaps.max() > 1.0  # the pause
 
 
