@@ -669,16 +669,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"bb2-replay: pid {os.getpid()}: playing {len(player.topics)} topics of {args.bag} at {args.rate:g}x "
               f"from bag time {player.start_ns * 1e-9:.3f} s{' (paused)' if args.pause else ''}; "
               f"pause/resume: kill -USR1 {os.getpid()} or service {PAUSE_SERVICE}", flush=True)
+        # the playback clock stands still until playing starts: waiting for readers and the discovery delay
+        # must not eat into the bag (else the first messages would go out in a catch-up burst)
+        paused = player.clock.paused
+        player.clock.set_paused(True)
+        player.clock.restart(player.start_ns)
         if args.wait_for_readers > 0:
             deadline = time.monotonic() + args.wait_for_readers
             while time.monotonic() < deadline and not all(
                     pub.get_subscription_count() > 0 for pub in player.pubs.values()):
                 time.sleep(0.05)
         if args.delay > 0:
-            paused = player.clock.paused
-            player.clock.set_paused(True)
             time.sleep(args.delay)
-            player.clock.set_paused(paused)
+        player.clock.set_paused(paused)
         stats = player.play()
         player.drain()
         print(f"bb2-replay: published {sum(stats.published.values())} messages "
