@@ -171,6 +171,9 @@ class Stack:
         self._last: ControlOutput | None = None
 
     def reset(self) -> None:
+        """Every piece back to its initial state (subclasses set ``guidance`` and ``inner``)."""
+        self.guidance.reset()
+        self.inner.reset()
         self.mixer.reset()
         self.speed.reset()
         self._last = None
@@ -224,11 +227,6 @@ class RatePathFollowingStack(Stack):
         self.inner = RateInnerLoop(l1, RateAutopilot(require(config, "autopilot", name)))
         _check_Ts(self, self.guidance.gains.Ts, l1, self.inner.autopilot.Ts)
 
-    def reset(self) -> None:
-        super().reset()
-        self.guidance.reset()
-        self.inner.reset()
-
     def _step(self, state: VehicleState, x: dict[str, Any]) -> ControlOutput:
         pf = self.guidance.step(x["p"], x["R_BI"], x["v_flu"])
         q_ref, r_ref = flow_to_body_rates(pf.q_c, pf.r_c, x["v_flu"])
@@ -250,11 +248,6 @@ class LosDepthHeadingStack(Stack):
         l1 = L1Augmentation.from_config(require(config, "l1", name), bool(config.get("adaptation", True)))
         self.inner = DepthHeadingInnerLoop(l1, DepthHeadingPD(require(config, "autopilot", name)))
         _check_Ts(self, self.guidance.gains.Ts, l1, self.inner.autopilot.Ts)
-
-    def reset(self) -> None:
-        super().reset()
-        self.guidance.reset()
-        self.inner.reset()
 
     def _step(self, state: VehicleState, x: dict[str, Any]) -> ControlOutput:
         los = self.guidance.step(x["p"], x["heading"], float(x["v_flu"][0]))
