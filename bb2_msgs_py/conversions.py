@@ -97,7 +97,7 @@ def state_to_enu_arrays(state: VehicleState) -> dict[str, np.ndarray]:
     phi, theta, psi = (float(x) for x in state.euler_native)
     return {
         "p_enu": frames.earth_native_to_enu(_vec3(state.p_native)),
-        "q_enu_flu": frames.quaternion_from_rotation(frames.rotation_enu_flu(phi, theta, psi)),
+        "q_enu_flu": np.array(frames.quaternion_enu_flu(phi, theta, psi)),
         "v_flu": frames.body_native_to_flu(_vec3(state.v_body_native)),
         "w_flu": frames.body_native_to_flu(_vec3(state.w_body_native)),
     }

@@ -514,7 +514,8 @@ class GraphMonitor:
         self.end_at = end_at
         self.clock_count = 0
         self._samples: collections.deque[tuple[float, float]] = collections.deque()
-        self._first: tuple[float, float] | None = None
+        self._first: tuple[float, float] | None = None  # the first /clock (start-up handshake at t0)
+        self._first_step: tuple[float, float] | None = None  # the first /clock after t0 (stepping started)
         self.rtf_window_s = rtf_window_s
         n = self.node
         n.create_subscription(message_class("rosgraph_msgs/msg/Clock"), "/clock", self._on_clock,
@@ -546,6 +547,8 @@ class GraphMonitor:
             self.clock_count += 1
             if self._first is None:
                 self._first = (wall, t)
+            elif self._first_step is None and t != self._first[1]:
+                self._first_step = (wall, t)
             self._samples.append((wall, t))
             while len(self._samples) > 2 and wall - self._samples[0][0] > self.rtf_window_s:
                 self._samples.popleft()
@@ -567,17 +570,27 @@ class GraphMonitor:
                 self.sim_error = vals.get("error") or st.message or "diverged"
 
     def rtf(self, *, overall: bool = False) -> float | None:
-        """Sim seconds per wall second over the last window (or since the first /clock)."""
+        """Sim seconds per wall second over the last window, or (``overall``) while stepping: from the
+        first /clock after the start time (the first step done; the graph's start-up handshake at t0,
+        which waits for every node to answer, is not stepping) to the last one."""
         with self._lock:
             if overall:
-                if self._first is None or not self._samples:
+                if self._first_step is None or not self._samples:
                     return None
-                (w0, t0), (w1, t1) = self._first, self._samples[-1]
+                (w0, t0), (w1, t1) = self._first_step, self._samples[-1]
             else:
                 if len(self._samples) < 2:
                     return None
                 (w0, t0), (w1, t1) = self._samples[0], self._samples[-1]
         return (t1 - t0) / (w1 - w0) if w1 > w0 else None
+
+    def stepping_span(self) -> tuple[float | None, float | None]:
+        """(sim s, wall s) from the first /clock after the start time to the last one."""
+        with self._lock:
+            if self._first_step is None or not self._samples:
+                return None, None
+            (w0, t0), (w1, t1) = self._first_step, self._samples[-1]
+        return t1 - t0, w1 - w0
 
     @property
     def mission_complete(self) -> bool:
@@ -645,8 +658,9 @@ class RunResult:
     exits: list[NodeExit]
     sim_time_s: float | None
     progress: float | None
-    rtf_overall: float | None
+    rtf_overall: float | None  # sim s per wall s while stepping (GraphMonitor.rtf(overall=True))
     wall_s: float
+    stepping_wall_s: float | None = None  # wall s from the first step to the last /clock
 
 
 class _StopFlag:
@@ -736,7 +750,8 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
             signal.signal(s, h)
     return RunResult(code, reason, list(sup.exits),
                      monitor.sim_time_s if monitor else None, monitor.progress if monitor else None,
-                     monitor.rtf(overall=True) if monitor else None, time.monotonic() - t0)
+                     monitor.rtf(overall=True) if monitor else None, time.monotonic() - t0,
+                     monitor.stepping_span()[1] if monitor else None)
 
 
 # ============================================================================ the BB2 graph

@@ -172,6 +172,24 @@ def make_executor():
     return SingleThreadedExecutor()
 
 
+def _profiler():
+    """A running cProfile profiler when ``BB2_PROFILE_DIR`` is set (a developer's switch: the spin
+    loop's profile (thread CPU time) is written to ``$BB2_PROFILE_DIR/<node>-<pid>.prof`` at exit; read it with pstats)."""
+    import os
+
+    if not os.environ.get("BB2_PROFILE_DIR"):
+        return None
+    import cProfile
+
+    os.makedirs(os.environ["BB2_PROFILE_DIR"], exist_ok=True)
+    import time
+
+    # CPU time (not wall): what a node costs its core, blocking waits excluded
+    prof = cProfile.Profile(time.thread_time)
+    prof.enable()
+    return prof
+
+
 def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str] | None = None) -> int:
     """Init rclpy with ``args`` (``sys.argv`` when None), build ``factory(argv)``, spin until SIGINT/SIGTERM.
 
@@ -201,8 +219,15 @@ def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str]
             return EXIT_BAD_INPUT
         executor = make_executor()
         executor.add_node(shell.node)
-        while not stop.is_set() and rclpy.ok() and not getattr(shell, "done", False):
-            executor.spin_once(timeout_sec=0.1)
+        profiler = _profiler()
+        try:
+            while not stop.is_set() and rclpy.ok() and not getattr(shell, "done", False):
+                executor.spin_once(timeout_sec=0.1)
+        finally:
+            if profiler is not None:
+                profiler.disable()
+                import os
+                profiler.dump_stats(os.path.join(os.environ["BB2_PROFILE_DIR"], f"{name}-{os.getpid()}.prof"))
         code = int(getattr(shell, "exit_code", EXIT_OK))
     except Exception as exc:
         _error(name, f"{type(exc).__name__}: {exc}")

@@ -19,6 +19,10 @@ import math
 import sys
 from typing import Sequence
 
+from bb2_control.errors import NonFiniteInputError
+from bb2_control.path_following import flow_to_body_rates
+from bb2_msgs_py import conversions as cv
+
 from bb2_tools.node_common import (NodeStatus, StampedCache, check_remaps, declare, mission_pieces,
                                    require_choice, require_positive, require_rate_stack, run_node,
                                    subscribe_state, time_msg)
@@ -60,7 +64,6 @@ class L1AutopilotShell:
             "adaptation": str(self.stack.adaptation).lower(), **{k: str(v) for k, v in self.counts.items()}})
 
     def _on_rate(self, msg) -> None:
-        from bb2_msgs_py import conversions as cv
 
         try:
             q_c, r_c = cv.rate_command_from_message(msg)
@@ -97,9 +100,6 @@ class L1AutopilotShell:
                 del d[min(d)]
 
     def _answer(self, ns: int, state, rate: tuple[float, float]) -> None:
-        from bb2_control.errors import NonFiniteInputError
-        from bb2_control.path_following import flow_to_body_rates
-        from bb2_msgs_py import conversions as cv
 
         stack = self.stack
         try:

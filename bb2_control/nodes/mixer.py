@@ -12,6 +12,9 @@ import math
 import sys
 from typing import Sequence
 
+from bb2_control.errors import NonFiniteInputError
+from bb2_msgs_py import conversions as cv
+
 from bb2_tools.node_common import (NodeStatus, StampedCache, check_remaps, declare, mission_pieces,
                                    require_positive, run_node)
 
@@ -42,8 +45,6 @@ class MixerShell:
             "mission": self.mission.name, **{k: str(v) for k, v in self.counts.items()}})
 
     def _on_vh(self, msg) -> None:
-        from bb2_control.errors import NonFiniteInputError
-        from bb2_msgs_py import conversions as cv
 
         ns = cv.stamp_to_ns(msg.header.stamp)
         if self.cache.replay(ns):

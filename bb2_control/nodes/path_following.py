@@ -20,6 +20,9 @@ import dataclasses
 import sys
 from typing import Sequence
 
+from bb2_control.errors import NonFiniteInputError, PathFollowingError
+from bb2_msgs_py import conversions as cv
+
 from bb2_tools.node_common import (NodeStatus, StampedCache, check_remaps, components_for, declare,
                                    mission_only, require_choice, require_positive, require_rate_stack,
                                    run_node, subscribe_state, time_msg)
@@ -87,7 +90,6 @@ class PathFollowingShell:
                                     f"length {self.length_m:.1f} m")
 
     def _on_path(self, msg) -> None:
-        from bb2_msgs_py import conversions as cv
 
         try:
             path = cv.bernstein_from_message(msg, name=self.mission.path.name)
@@ -97,8 +99,6 @@ class PathFollowingShell:
         self._build(path)
 
     def _on_state(self, state, stamp_ns: int) -> None:
-        from bb2_control.errors import NonFiniteInputError, PathFollowingError
-        from bb2_msgs_py import conversions as cv
 
         self.counts["states"] += 1
         if self.stack is None:

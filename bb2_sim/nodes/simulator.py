@@ -53,6 +53,11 @@ from typing import Sequence
 
 import numpy as np
 
+from bb2_msgs_py import conversions as cv
+from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT
+from bb2_sim.integrator import NonFiniteStateError
+from bb2_sim.state import VehicleState
+
 from bb2_tools.node_common import (NodeConfigError, Throttle, check_remaps, declare, mission_pieces,
                                    require_choice, require_positive, run_node)
 
@@ -184,20 +189,17 @@ class SimulatorShell:
         return self.sim.t
 
     def _t_ns(self) -> int:
-        from bb2_msgs_py.conversions import seconds_to_ns
-        return seconds_to_ns(self.sim.t)
+        return cv.seconds_to_ns(self.sim.t)
 
     # ------------------------------------------------------------------------------------ commands
     def _check_header(self, msg, what: str) -> bool:
-        from bb2_msgs_py.contract import FRAME_BASE_LINK
-        from bb2_msgs_py.conversions import stamp_to_ns
 
         if msg.header.frame_id != FRAME_BASE_LINK:
             self.counters["rejected_frame"] += 1
             self.warn.warn(f"frame_{what}", f"rejected {what} command: frame_id {msg.header.frame_id!r}, "
                                             f"expected {FRAME_BASE_LINK!r}")
             return False
-        st, now = stamp_to_ns(msg.header.stamp), self._t_ns()
+        st, now = cv.stamp_to_ns(msg.header.stamp), self._t_ns()
         if self.time_mode == "lockstep":
             if st < now:
                 self.counters["late_commands"] += 1  # an answer to an earlier (resent/timed-out) step
@@ -221,15 +223,13 @@ class SimulatorShell:
         return True
 
     def _on_planes(self, msg) -> None:
-        from bb2_msgs_py.contract import PLANE_JOINTS
-        from bb2_msgs_py.conversions import ConversionError, planes_from_message
 
         try:
             if len(msg.name) != len(PLANE_JOINTS) or len(set(msg.name)) != len(msg.name):
-                raise ConversionError(f"expected the {len(PLANE_JOINTS)} joints {list(PLANE_JOINTS)}, "
+                raise cv.ConversionError(f"expected the {len(PLANE_JOINTS)} joints {list(PLANE_JOINTS)}, "
                                       f"got {list(msg.name)}")
-            rad = planes_from_message(msg)
-        except ConversionError as exc:
+            rad = cv.planes_from_message(msg)
+        except cv.ConversionError as exc:
             self.counters["rejected_names"] += 1
             self.warn.warn("names_planes", f"rejected plane command: {exc}")
             return
@@ -251,14 +251,12 @@ class SimulatorShell:
             self._maybe_advance()
 
     def _on_propeller(self, msg) -> None:
-        from bb2_msgs_py.contract import PROPELLER_JOINT
-        from bb2_msgs_py.conversions import ConversionError, propeller_from_message
 
         try:
             if list(msg.name) != [PROPELLER_JOINT]:
-                raise ConversionError(f"expected the joint [{PROPELLER_JOINT!r}], got {list(msg.name)}")
-            omega = propeller_from_message(msg)
-        except ConversionError as exc:
+                raise cv.ConversionError(f"expected the joint [{PROPELLER_JOINT!r}], got {list(msg.name)}")
+            omega = cv.propeller_from_message(msg)
+        except cv.ConversionError as exc:
             self.counters["rejected_names"] += 1
             self.warn.warn("names_prop", f"rejected propeller command: {exc}")
             return
@@ -384,9 +382,6 @@ class SimulatorShell:
             self._publish_status()
 
     def _advance(self, planes_deg: np.ndarray, rps: float) -> None:
-        from bb2_msgs_py import conversions as cv
-        from bb2_sim.integrator import NonFiniteStateError
-        from bb2_sim.state import VehicleState
 
         self._ans_planes = self._ans_rps = None
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
@@ -423,8 +418,6 @@ class SimulatorShell:
 
     def _publish_trigger(self) -> None:
         """/clock and the exact state of the current step (what the controllers answer)."""
-        from bb2_msgs_py import conversions as cv
-        from bb2_sim.state import VehicleState
 
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
         if self._csv:
@@ -437,8 +430,6 @@ class SimulatorShell:
 
     def _publish_sensors(self) -> None:
         """Odometry, depth and altitude of the current step."""
-        from bb2_msgs_py import conversions as cv
-        from bb2_sim.state import VehicleState
 
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
         t = state.t

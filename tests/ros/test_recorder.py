@@ -180,3 +180,23 @@ def test_sigkilled_recorder_leaves_a_recoverable_bag(tmp_path, domain_id):
     assert rep.was_truncated and rep.message_counts["/bb2/odom"] == kept
     info = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert info["message_count"] == rep.message_count and not BagReader(out).truncated
+
+
+@pytest.mark.parametrize("frame_id,child", [("odom", "base_link"), ("map", "bb2/base_link"),
+                                            ("o", "b"), ("odom_ned", "base_link_frd_x")])
+def test_tf_from_odometry_cdr_equals_the_dynamic_encoder(frame_id, child):
+    """The recorder's /tf fast path (struct on the odometry CDR) writes the bytes mcap_ros2's dynamic encoder
+    writes for tf_from_odometry, for frame names of every length modulo 4 and 8 (CDR alignment)."""
+    from mcap_ros2._dynamic import serialize_dynamic
+    from rclpy.serialization import serialize_message
+
+    from bb2_tools.bagfile import message_definition
+    from bb2_tools.recorder import TF_TYPE, tf_cdr_from_odometry_cdr, tf_from_odometry
+
+    rng = np.random.default_rng(len(frame_id) + 7 * len(child))
+    state = VehicleState.from_vector(1234.56789, rng.normal(size=12))
+    odom = conv.state_to_odometry(state, frame_id=frame_id, child_frame_id=child)
+    encode = serialize_dynamic(TF_TYPE, message_definition(TF_TYPE))[TF_TYPE]
+    assert tf_cdr_from_odometry_cdr(serialize_message(odom)) == encode(tf_from_odometry(odom))
+    with pytest.raises(ValueError, match="little-endian"):
+        tf_cdr_from_odometry_cdr(b"\x00\x00\x00\x00" + serialize_message(odom)[4:])

@@ -167,6 +167,22 @@ def test_frame_conversions_round_trip(seed):
     assert frames.rotation_from_quaternion(q) == pytest.approx(R, abs=1e-14)
 
 
+@pytest.mark.parametrize("seed", range(20))
+def test_closed_form_quaternion_equals_the_rotation_matrix_one(seed):
+    """frames.quaternion_enu_flu (what the odometry and IMU carry) = scipy's quaternion of R_enu_flu,
+    w >= 0, over the whole attitude range (incl. |psi| > pi/2 and w -> 0 where the sign flips)."""
+    rng = np.random.default_rng(seed)
+    phi, theta, psi = rng.uniform(-math.pi, math.pi), rng.uniform(-1.5, 1.5), rng.uniform(-math.pi, math.pi)
+    if seed == 0:
+        phi, theta, psi = 0.0, 0.0, math.pi  # w = 0 exactly: either sign is the same rotation
+    q = np.array(frames.quaternion_enu_flu(phi, theta, psi))
+    ref = frames.quaternion_from_rotation(frames.rotation_enu_flu(phi, theta, psi))
+    assert np.linalg.norm(q) == pytest.approx(1.0, abs=1e-15)
+    assert q[3] >= 0.0
+    assert min(np.abs(q - ref).max(), np.abs(q + ref).max()) < 1e-15 * 8
+    assert frames.rotation_from_quaternion(q) == pytest.approx(frames.rotation_enu_flu(phi, theta, psi), abs=1e-14)
+
+
 def test_frame_conventions_match_the_paper():
     # psi = 0: the bow points along -x native = +x ENU = east; NED heading 90 deg
     R = frames.rotation_native(0, 0, 0)
