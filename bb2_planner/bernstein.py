@@ -98,6 +98,12 @@ def de_casteljau(c: np.ndarray, tau: np.ndarray) -> np.ndarray:
     scalar = np.ndim(c) == 1
     c = _as_points(c)
     tau = np.asarray(tau, dtype=float)
+    if tau.ndim == 0:  # one point (the path follower, every tick): the same arithmetic on 2-D arrays
+        t = float(tau)
+        b = c
+        for _ in range(c.shape[0] - 1):
+            b = (1.0 - t) * b[:-1] + t * b[1:]
+        return b[0, 0] if scalar else b[0].copy()
     flat = tau.reshape(-1, 1, 1)
     b = np.broadcast_to(c, (flat.shape[0],) + c.shape).copy()
     for _ in range(c.shape[0] - 1):
@@ -430,6 +436,21 @@ class BernsteinPath:
         mid = 0.5 * (edges[:-1] + edges[1:])
         tq = mid[:, None] + half[:, None] * x[None, :]
         return float(np.sum(half[:, None] * w[None, :] * self.speed(tq)))
+
+    def cumulative_arc_length(self, samples: int = 1001, *, nodes: int = 8) -> tuple[np.ndarray, np.ndarray]:
+        """(t, s): arc length ``s(t)`` from ``t0`` at ``samples`` uniform times [s, m], each interval by
+        Gauss-Legendre (``nodes`` points), summed.  ``np.interp(t_q, t, s)`` then gives the length
+        travelled at any ``t_q`` for a few microseconds (linear between samples: the error is of order
+        dt^2/8 max|d speed/dt|, ~1e-4 m on the shipped paths at the default), e.g. the path-following
+        node's progress every tick; ``s[-1]`` is :meth:`arc_length` to quadrature accuracy."""
+        if samples < 2:
+            raise ValueError(f"samples must be >= 2, got {samples}")
+        x, w = _gauss_legendre(nodes)
+        t = np.linspace(self.t0, self.tf, samples)
+        half = 0.5 * np.diff(t)
+        tq = 0.5 * (t[:-1] + t[1:])[:, None] + half[:, None] * x[None, :]
+        ds = np.sum(half[:, None] * w[None, :] * self.speed(tq), axis=1)
+        return t, np.concatenate([[0.0], np.cumsum(ds)])
 
     def length_bounds(self) -> tuple[float, float]:
         """(chord, control-polygon length): ``|c_n - c_0| <= L <= sum |c_{i+1} - c_i|``."""

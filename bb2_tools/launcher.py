@@ -179,6 +179,7 @@ class ProcessSpec:
     sigterm_grace_s: float = 3.0
     ready: Callable[[], bool] | None = None
     env: Mapping[str, str] | None = None
+    nice: int = 0  # niceness increment (> 0: yields the CPU to the control loop; e.g. the recorder)
 
     def argv(self, attempt: int) -> list[str]:
         cmd = self.command(attempt) if callable(self.command) else self.command
@@ -256,7 +257,13 @@ class _Child:
         self.log.write(f"---- {stamp} attempt {attempt}: {' '.join(self.argv)}\n".encode())
         full_env = dict(env)
         full_env.update(spec.env or {})
-        preexec = _set_parent_death_signal if sys.platform.startswith("linux") else None
+        nice = int(spec.nice)
+
+        def preexec() -> None:  # in the child between fork and exec
+            if sys.platform.startswith("linux"):
+                _set_parent_death_signal()
+            if nice > 0:
+                os.nice(nice)
         try:
             self.popen = subprocess.Popen(self.argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                           stderr=subprocess.STDOUT, env=full_env, cwd=cwd,
@@ -485,6 +492,10 @@ END_AT = ("either", "simulator", "progress")
 ``state: finished``), the mission progress reaches 1 (the path is flown), or whichever comes first."""
 
 
+def _unused(_msg) -> None:  # pragma: no cover - polled subscriptions have no executor
+    pass
+
+
 class GraphMonitor:
     """A small rclpy node (own context, own thread) watching ``/clock``, the mission progress and
     ``/bb2/status`` on ``domain_id``; also answers graph questions (nodes, subscriptions)."""
@@ -496,6 +507,7 @@ class GraphMonitor:
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import HistoryPolicy
         from rclpy.signals import SignalHandlerOptions
 
         from bb2_msgs_py.contract import message_class, qos_profile
@@ -518,12 +530,25 @@ class GraphMonitor:
         self._first_step: tuple[float, float] | None = None  # the first /clock after t0 (stepping started)
         self.rtf_window_s = rtf_window_s
         n = self.node
-        n.create_subscription(message_class("rosgraph_msgs/msg/Clock"), "/clock", self._on_clock,
-                              qos_profile("/clock"), raw=True)
-        n.create_subscription(message_class("std_msgs/msg/Float64"), "/bb2/mission/progress",
-                              self._on_progress, qos_profile("/bb2/mission/progress"), raw=True)
         n.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
                               self._on_status, qos_profile("/bb2/status"))
+        # /clock and the progress come once per step (hundreds per wall second in lockstep): they are not
+        # spun (a Python callback each would take CPU from the graph) but polled, the latest sample only,
+        # from a second node that no executor waits on.
+        self.poll_node_name = node_name + "_poll"
+        self._poll_node = rclpy.create_node(self.poll_node_name, context=self.context,
+                                            start_parameter_services=False, enable_rosout=False)
+
+        def latest_only(name):
+            q = qos_profile(name)
+            q.history, q.depth = HistoryPolicy.KEEP_LAST, 1
+            return q
+
+        self._clock_sub = self._poll_node.create_subscription(
+            message_class("rosgraph_msgs/msg/Clock"), "/clock", _unused, latest_only("/clock"), raw=True)
+        self._progress_sub = self._poll_node.create_subscription(
+            message_class("std_msgs/msg/Float64"), "/bb2/mission/progress", _unused,
+            latest_only("/bb2/mission/progress"), raw=True)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(n)
         self._stop = threading.Event()
@@ -533,15 +558,32 @@ class GraphMonitor:
     def _spin(self) -> None:
         while not self._stop.is_set() and self.context.ok():
             try:
-                self.executor.spin_once(timeout_sec=0.1)
+                self.executor.spin_once(timeout_sec=self.POLL_S)
+                self._poll()
             except Exception:  # context shut down under us
                 if self._stop.is_set():
                     break
                 raise
 
-    def _on_clock(self, data: bytes) -> None:
+    POLL_S = 0.05
+
+    def _poll(self) -> None:
+        """Take the latest /clock and progress (if new ones came)."""
+        for sub, handler in ((self._clock_sub, self._on_clock), (self._progress_sub, self._on_progress)):
+            last = None
+            while True:
+                got = sub.handle.take_message(sub.msg_type, True)
+                if got is None:
+                    break
+                last = got
+            if last is not None:
+                data, info = last
+                handler(data, int(info.get("source_timestamp", 0)) * 1e-9 or time.time())
+
+    def _on_clock(self, data: bytes, wall: float) -> None:
+        """``wall``: the DDS source timestamp (the simulator's wall clock when it published this /clock)."""
         sec, nsec = _cdr_unpack("iI", data)
-        t, wall = sec + nsec * 1e-9, time.monotonic()
+        t = sec + nsec * 1e-9
         with self._lock:
             self.sim_time_s = t
             self.clock_count += 1
@@ -553,7 +595,7 @@ class GraphMonitor:
             while len(self._samples) > 2 and wall - self._samples[0][0] > self.rtf_window_s:
                 self._samples.popleft()
 
-    def _on_progress(self, data: bytes) -> None:
+    def _on_progress(self, data: bytes, _wall: float = 0.0) -> None:
         (p,) = _cdr_unpack("d", data)
         with self._lock:
             self.progress = p
@@ -599,7 +641,8 @@ class GraphMonitor:
         return {"either": by_sim or by_progress, "simulator": by_sim, "progress": by_progress}[self.end_at]
 
     def node_names(self) -> list[str]:
-        return sorted(n for n, _ns in self.node.get_node_names_and_namespaces() if n != self.node_name)
+        own = (self.node_name, self.poll_node_name)
+        return sorted(n for n, _ns in self.node.get_node_names_and_namespaces() if n not in own)
 
     def subscribed(self, node_name: str, topics: Iterable[str]) -> bool:
         """Whether ``node_name`` has a subscription on each of ``topics`` (as discovered here)."""
@@ -619,6 +662,7 @@ class GraphMonitor:
         self._thread.join(timeout=2.0)
         try:
             self.executor.shutdown(timeout_sec=1.0)
+            self._poll_node.destroy_node()
             self.node.destroy_node()
         finally:
             if self.context.ok():
@@ -811,6 +855,13 @@ class Settled:
         return now - self._since >= self.settle_s
 
 
+BACKGROUND_NICE = 10
+BACKGROUND_NODES = ("recorder", "planner")
+"""Nodes off the control loop (state -> commands -> step), started with ``nice +BACKGROUND_NICE``: on a
+machine with fewer cores than busy processes they take the CPU the loop leaves (the recorder's deep queues
+absorb the delay; the planner only publishes the path), not the loop's."""
+
+
 def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params: Path | None = None,
                 record: bool = True, runner: str = "auto",
                 policies: Mapping[str, RestartPolicy] | None = None,
@@ -844,7 +895,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
 
             ready = (lambda m=monitor, t=topics: m.subscribed(RECORDER_NODE_NAME, t)) if monitor else None
             specs.append(ProcessSpec(node.name, rec_cmd, policy, stop_stage=1, sigint_grace_s=30.0,
-                                     sigterm_grace_s=10.0, ready=ready))
+                                     sigterm_grace_s=10.0, ready=ready, nice=BACKGROUND_NICE))
             continue
         # The params file goes first: for '/**' keys the last source wins, so the launcher's own -p values
         # (mission, time mode, sim time) must come after it.
@@ -858,7 +909,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
         if node.name == "simulator" and mode == "lockstep" and monitor is not None:
             ready = Settled(lambda m=monitor: m.publishes("simulator", "/bb2/odom"), settle_s)
         specs.append(ProcessSpec(node.name, [*base, *ros], policy, finishes_graph=node.name == "simulator",
-                                 ready=ready))
+                                 ready=ready, nice=BACKGROUND_NICE if node.name in BACKGROUND_NODES else 0))
     first = [s for s in specs if s.ready is not None]
     return first + [s for s in specs if s.ready is None]
 

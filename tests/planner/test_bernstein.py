@@ -1,6 +1,8 @@
 """Bernstein identities and the geometric queries of BernsteinPath."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy import special
@@ -9,6 +11,8 @@ from bb2_planner.bernstein import (BernsteinPath, PathError, basis_matrix, de_ca
                                    elevate_points, fit_control_points, gram_matrix, integral,
                                    product_points)
 from bb2_planner.paths import load_path
+
+REPO = Path(__file__).resolve().parents[2]
 
 RNG = np.random.default_rng(7)
 
@@ -92,6 +96,24 @@ def test_arc_length_matches_dense_polyline_and_bounds():
     assert lo <= L <= hi
     tm = 7.1
     assert P.arc_length(P.t0, tm) + P.arc_length(tm, P.tf) == pytest.approx(L, rel=1e-10)
+
+
+def test_cumulative_arc_length_table_interpolates_the_arc_length():
+    """The path-following node's progress table: exact at the samples, within 1e-4 m between them on the
+    shipped canyon path, and its end is the whole length."""
+    from bb2_tools.mission import load_mission
+
+    for P, tol_m in ((random_path(n=6), 1e-6 * 230.5), (load_mission(REPO / "missions" / "canyon.yaml").path, 1e-4)):
+        t, s = P.cumulative_arc_length(2001)
+        assert t[0] == P.t0 and t[-1] == P.tf and s[0] == 0.0 and np.all(np.diff(s) > 0)
+        assert s[-1] == pytest.approx(P.arc_length(), rel=1e-12)
+        for k in (1, 500, 1777):
+            assert s[k] == pytest.approx(P.arc_length(P.t0, t[k]), rel=1e-12, abs=1e-9)
+        rng = np.random.default_rng(3)
+        for tq in rng.uniform(P.t0, P.tf, 25):
+            assert abs(np.interp(tq, t, s) - P.arc_length(P.t0, tq)) < tol_m
+    with pytest.raises(ValueError, match="samples"):
+        P.cumulative_arc_length(1)
 
 
 def test_product_and_integral():
