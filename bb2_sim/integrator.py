@@ -61,6 +61,11 @@ class Simulator:
     def t(self) -> float:
         return self.t0 + self.n * self.h
 
+    @property
+    def t_next(self) -> float:
+        """The time the next :meth:`step` reaches (exactly the value of :attr:`t` after it)."""
+        return self.t0 + (self.n + 1) * self.h
+
     def step(self, planes_cmd_deg, rps_cmd: float, dmass_cmd_kg: float = 0.0) -> StepRecord:
         """Advance one major step with the given commands; returns the record of t_n.
 

@@ -4,7 +4,8 @@ Parameters (``config/bb2_graph.yaml`` lists them all with their defaults):
 
 ``mission_file``       the mission YAML (as ``bb2-sim mission``): model, initial state, terrain, duration.
 ``time_mode``          ``lockstep`` | ``realtime``.
-``rate_hz``            real time: steps per wall second (1/Ts = 20 is real time; 100 runs 5x faster).
+``rate_hz``            real time: steps per wall second (1/Ts = 20 is real time; 100 runs 5x faster), on
+                       absolute deadlines in a thread of its own (not an executor timer).
 ``lockstep_timeout_s`` lockstep: wall time to wait for the answer of a step before holding the last
                        valid commands (or the safe default) and stepping anyway (status + warning).
 ``lockstep_retry_s``   lockstep: re-send the current ``/bb2/state_native`` (and ``/bb2/odom``) after this wall
@@ -17,6 +18,13 @@ Parameters (``config/bb2_graph.yaml`` lists them all with their defaults):
 ``min_state_subscribers`` publish the first state (start stepping) only once this many readers of
                        ``/bb2/state_native`` are discovered (e.g. 3: path_following, l1_autopilot, recorder), at
                        most ``startup_timeout_s``; 0 = start at once.
+``realtime_priority``  real time: SCHED_FIFO priority (1-99, default 50) of the stepping thread, so the period
+                       holds on a loaded machine (HIL); 0 = normal scheduling.  Refused by the OS (no
+                       CAP_SYS_NICE / rtprio limit): one warning, normal scheduling.  A thread that overruns every
+                       step for a second gives the priority up (it would starve its core).
+``hold_cpu_dma_latency`` real time: hold ``/dev/cpu_dma_latency`` at 0 us while running (the PM QoS request
+                       of cyclictest and RT setups: idle cores wake without deep C-state or halt exits;
+                       measured here: a DDS round trip 150 -> 102 us).  Refused (not root): one warning.
 ``command_timeout_s``  real time: a command older than this (wall time since it arrived), or none at all,
                        engages the failsafe: planes commanded to neutral (0 rad), propeller held at the last
                        valid command (the mission's nominal speed command if none ever arrived).
@@ -29,7 +37,9 @@ Parameters (``config/bb2_graph.yaml`` lists them all with their defaults):
 ``warn_throttle_s``    at most one warning of a kind per this many wall seconds.
 ``strict_remaps``      a ``-r`` rule naming no topic of this node is an error (else a warning).
 
-Per step ``n`` (time ``t_n``): ``/clock``, ``/bb2/state_native``, ``/bb2/odom``, ``/bb2/depth``,
+``/clock`` goes to ``t_n+1`` when the step from ``t_n`` starts (the commands of ``t_n`` are in), before the
+integration, so the nodes on sim time handle it while the ROM steps, not when they must answer the state.
+Per step ``n`` (time ``t_n``): ``/clock`` (first, at ``t_0``), ``/bb2/state_native``, ``/bb2/odom``, ``/bb2/depth``,
 ``/bb2/altitude`` (missions with terrain only) carry the state at ``t_n``; once the step from ``t_n`` is
 integrated, ``/bb2/imu`` (specific force incl. gravity), ``/bb2/planes/state`` and
 ``/bb2/propeller/state`` carry the actuator outputs and the acceleration at ``t_n`` (they depend on the
@@ -47,7 +57,9 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import sys
+import threading
 import time
 from typing import Sequence
 
@@ -83,6 +95,9 @@ class SimulatorShell:
         from bb2_msgs_py.contract import message_class, qos_profile
 
         self.node = node = Node("simulator")
+        self._lock = threading.RLock()  # real time: the stepping thread vs the executor's callbacks
+        self.scheduling = "normal"  # of the real-time stepping thread (status)
+        self.cpu_latency = "not held"  # /dev/cpu_dma_latency (status)
         P = lambda *a: declare(node, *a)  # noqa: E731
         self.mission_file = P("mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         self.time_mode = require_choice("time_mode", P("time_mode", "lockstep",
@@ -100,6 +115,14 @@ class SimulatorShell:
             "startup_settle_s", 0.5, "lockstep: hold the first step this long after its first answer"),
             allow_zero=True)
         self._first_answer_wall: float | None = None
+        self.realtime_priority = int(P("realtime_priority", 50,
+                                       "realtime: SCHED_FIFO priority (1-99) of the stepping thread; 0 = normal "
+                                       "scheduling (refused by the OS: a warning, normal scheduling)"))
+        self.hold_cpu_dma_latency = bool(P(
+            "hold_cpu_dma_latency", True, "realtime: hold /dev/cpu_dma_latency at 0 us while running (idle cores "
+            "wake fast, as cyclictest does); refused by the OS: a warning"))
+        if not 0 <= self.realtime_priority <= 99:
+            raise NodeConfigError(f"realtime_priority must be in 0..99, got {self.realtime_priority}")
         self.command_timeout_s = require_positive("command_timeout_s", P(
             "command_timeout_s", 0.5, "realtime: wall s without a valid command before the failsafe"))
         self.max_command_age_s = require_positive("max_command_age_s", P(
@@ -139,9 +162,9 @@ class SimulatorShell:
 
         self.pub = {n: pub(n) for n in TOPICS_OUT if n != "/bb2/altitude" or self.terrain is not None}
         self.sub_planes = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd",
-                                                   self._on_planes, qos_profile("/bb2/planes/cmd"))
+                                                   self._locked(self._on_planes), qos_profile("/bb2/planes/cmd"))
         self.sub_prop = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/propeller/cmd",
-                                                 self._on_propeller, qos_profile("/bb2/propeller/cmd"))
+                                                 self._locked(self._on_propeller), qos_profile("/bb2/propeller/cmd"))
         self.warn = Throttle(node.get_logger(), throttle_s)
         self.counters = {k: 0 for k in ("rejected_nonfinite", "rejected_names", "rejected_frame", "rejected_stale",
                                         "rejected_future", "clamped", "late_commands", "lockstep_timeouts",
@@ -169,19 +192,27 @@ class SimulatorShell:
         self._rate_measured = 0.0
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.status_timer = node.create_timer(self.status_period_s, self._publish_status, clock=steady)
+        self.status_timer = node.create_timer(self.status_period_s, self._locked(self._publish_status), clock=steady)
         self.started = False
         self._sent_wall = self._first_sent_wall = time.monotonic()
-        self.start_timer = node.create_timer(0.02, self._start, clock=steady)
+        self.start_timer = node.create_timer(0.02, self._locked(self._start), clock=steady)
         if self.time_mode == "lockstep":
             self.watchdog = node.create_timer(min(0.01, self.lockstep_retry_s / 2), self._watchdog, clock=steady)
-        else:
+        else:  # a thread of its own, on absolute wall deadlines (not an executor timer: no callback queue ahead)
             self._next_tick = time.monotonic()
-            self.tick_timer = node.create_timer(1.0 / self.rate_hz, self._tick, clock=steady)
+            self._rt_stop = threading.Event()
+            self._rt_thread = threading.Thread(target=self._realtime_loop, name="bb2-sim-realtime", daemon=True)
+            self._rt_thread.start()
         node.get_logger().info(
             f"simulator up: mission {self.mission_file}, {self.time_mode}"
             + (f" at {self.rate_hz:g} Hz" if self.time_mode == "realtime" else "")
             + f", Ts = {self.h:g} s, duration {self.duration_s:g} s")
+
+    def _locked(self, fn):
+        def call(*args):
+            with self._lock:
+                return fn(*args)
+        return call
 
     # ------------------------------------------------------------------------------------ time
     @property
@@ -345,12 +376,64 @@ class SimulatorShell:
             rps, rw = self.default_rps, "nominal propeller"
         return planes, rps, f"{pw}, {rw}"
 
-    def _tick(self) -> None:
-        """Real-time step (wall timer)."""
-        if not self._stepping() or not self.started:
+    def _realtime_loop(self) -> None:
+        """Real time: step at ``rate_hz`` on absolute monotonic deadlines (sleeps to the next deadline; a
+        step later than a whole period is an overrun: counted, and the schedule restarts from now)."""
+        if self.realtime_priority > 0:
+            try:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.realtime_priority))  # this thread
+                self.scheduling = f"SCHED_FIFO {self.realtime_priority}"
+                self.node.get_logger().info(f"stepping thread: SCHED_FIFO priority {self.realtime_priority}")
+            except (OSError, AttributeError) as exc:
+                self.scheduling = f"normal (SCHED_FIFO {self.realtime_priority} refused: {exc})"
+                self.node.get_logger().warning(f"realtime_priority {self.realtime_priority} refused ({exc}): "
+                                               "stepping with normal scheduling")
+        if self.hold_cpu_dma_latency:
+            self._hold_cpu_dma_latency()
+        period = 1.0 / self.rate_hz
+        late = 0  # consecutive ticks with no time left before the next deadline
+        while not self._rt_stop.is_set():
+            if not self.started:
+                self._rt_stop.wait(0.01)
+                self._next_tick = time.monotonic()
+                continue
+            delay = self._next_tick - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+                late = 0
+            else:
+                late += 1
+                if late == int(self.rate_hz) and self.realtime_priority > 0:
+                    # a real-time thread that never sleeps would starve its core: give the priority up
+                    try:
+                        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+                        self.scheduling = "normal (SCHED_FIFO given up: overruns)"
+                    except (OSError, AttributeError):
+                        pass
+                    self.warn.warn("rt_drop", f"every step for 1 s took longer than the period at {self.rate_hz:g} "
+                                              "Hz: stepping thread back to normal scheduling")
+            with self._lock:
+                if self._rt_stop.is_set():
+                    break
+                self._tick(period)
+
+    def _hold_cpu_dma_latency(self) -> None:
+        """PM QoS: 0 us wake-up latency for as long as the file stays open (closed in :meth:`close`)."""
+        try:
+            self._dma_fd = os.open("/dev/cpu_dma_latency", os.O_WRONLY)
+            os.write(self._dma_fd, (0).to_bytes(4, sys.byteorder, signed=True))
+            self.cpu_latency = "held at 0 us"
+        except OSError as exc:
+            self._dma_fd = None
+            self.cpu_latency = f"not held ({exc.strerror})"
+            self.node.get_logger().warning(f"/dev/cpu_dma_latency: {exc.strerror}: idle cores keep their "
+                                           "wake-up latency")
+
+    def _tick(self, period: float) -> None:
+        """Real-time step (the stepping thread, at its deadline ``self._next_tick``)."""
+        if not self._stepping():
             return
         now = time.monotonic()
-        period = 1.0 / self.rate_hz
         if now - self._next_tick > period:
             self.counters["overruns"] += 1
             self._next_tick = now
@@ -382,9 +465,12 @@ class SimulatorShell:
             self._publish_status()
 
     def _advance(self, planes_deg: np.ndarray, rps: float) -> None:
-
         self._ans_planes = self._ans_rps = None
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
+        # /clock goes to t_n+1 now, before the integration: the nodes on sim time (every controller) take it
+        # while the ROM steps, not when the state of t_n+1 comes and they must answer it (recorders log the
+        # state of t_n+1 at t_n+1 all the same)
+        self.pub["/clock"].publish(cv.clock_message(self.sim.t_next))
         try:
             rec = self.sim.step(planes_deg, rps)
         except (NonFiniteStateError, ValueError) as exc:
@@ -396,14 +482,14 @@ class SimulatorShell:
             return
         finished = self.t >= self.duration_s - 1e-9
         if not finished:
-            self._publish_trigger()  # first: the controllers work on step n+1 while the sensors go out
+            self._publish_trigger(clock=False)  # first: the controllers work on step n+1 while the sensors go out
         t = rec.t
         f_flu = cv.specific_force_flu(state, rec.ev.xdot[6:9], self.g)
         self.pub["/bb2/imu"].publish(cv.imu_message(state, f_flu))
         self.pub["/bb2/planes/state"].publish(cv.planes_message(t, np.radians(rec.act.planes_deg)))
         self.pub["/bb2/propeller/state"].publish(cv.propeller_message(t, rec.act.rps * TWO_PI))
         if finished:
-            self._publish_trigger()
+            self._publish_trigger(clock=False)
             self._publish_sensors()
             self.finished = True
             self.node.get_logger().info(f"mission duration reached at t = {self.t:.3f} s")
@@ -416,13 +502,13 @@ class SimulatorShell:
         self._publish_trigger()
         self._publish_sensors()
 
-    def _publish_trigger(self) -> None:
-        """/clock and the exact state of the current step (what the controllers answer)."""
-
+    def _publish_trigger(self, *, clock: bool = True) -> None:
+        """(/clock and) the exact state of the current step (what the controllers answer)."""
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
         if self._csv:
             self._csv.writerow([repr(float(state.t))] + ["%.17g" % v for v in self.sim.x])
-        self.pub["/clock"].publish(cv.clock_message(state.t))
+        if clock:
+            self.pub["/clock"].publish(cv.clock_message(state.t))
         self._state_native_msg = cv.state_native_message(state)
         self._state_stamp = cv.stamp(state.t)
         self.pub["/bb2/state_native"].publish(self._state_native_msg)
@@ -430,7 +516,6 @@ class SimulatorShell:
 
     def _publish_sensors(self) -> None:
         """Odometry, depth and altitude of the current step."""
-
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
         t = state.t
         self._odom_msg = cv.state_to_odometry(state)
@@ -454,6 +539,8 @@ class SimulatorShell:
         vals = {"mode": self.time_mode, "state": state, "sim_time_s": f"{self.t:.6f}", "step": str(self.sim.n),
                 "failsafe": str(self.failsafe).lower(), "failsafe_reason": self.failsafe_reason,
                 "rate_hz": f"{self.rate_hz:g}" if self.time_mode == "realtime" else "as fast as the graph",
+                "scheduling": self.scheduling if self.time_mode == "realtime" else "executor (lockstep)",
+                "cpu_dma_latency": self.cpu_latency,
                 "step_rate_hz": f"{self._rate_measured:.2f}",
                 "real_time_factor": f"{self._rate_measured * self.h:.3f}",
                 "duration_s": f"{self.duration_s:g}", "mission_file": self.mission_file}
@@ -478,6 +565,12 @@ class SimulatorShell:
         self.pub["/bb2/status"].publish(DiagnosticArray(header=Header(stamp=stamp(self.t)), status=[st]))
 
     def close(self) -> None:
+        if getattr(self, "_rt_thread", None) is not None:
+            self._rt_stop.set()
+            self._rt_thread.join(timeout=2.0)
+        if getattr(self, "_dma_fd", None) is not None:
+            os.close(self._dma_fd)  # the kernel drops the request
+            self._dma_fd = None
         if self._csv_fh:
             self._csv_fh.close()
 

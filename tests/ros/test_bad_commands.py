@@ -4,6 +4,7 @@ and malformed params / mission files (non-zero exit, one clear message)."""
 from __future__ import annotations
 
 import math
+import os
 import random
 import signal
 import subprocess
@@ -163,6 +164,14 @@ def test_realtime_rejects_clamps_and_fails_safe(bench):
 
     b.stream(1.0, planes_rad=ok, omega=omega)
     b.wait(lambda: b.last_status().get("failsafe") == "false", 5, "failsafe released by valid commands", sim)
+    # the stepping thread asked for SCHED_FIFO 50 (the default): got it where the OS allows, else said why
+    st = b.last_status()
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        assert st["scheduling"] == "SCHED_FIFO 50", st
+    except PermissionError:
+        assert st["scheduling"].startswith("normal (SCHED_FIFO 50 refused"), st
 
     # NaN / inf: rejected, never integrated (the valid commands keep flowing)
     b.stream(0.6, planes_rad=[math.nan, 0, 0, 0, 0], omega=math.inf)
@@ -231,8 +240,8 @@ def test_lockstep_timeout_holds_commands_and_resumes(bench):
     assert int(b.last_status()["lockstep_timeouts"]) <= n0 + 2
 
 
-@pytest.mark.parametrize("case", ["params_yaml", "params_type", "params_choice", "mission_yaml", "mission_key",
-                                  "mission_missing", "no_mission"])
+@pytest.mark.parametrize("case", ["params_yaml", "params_type", "params_choice", "params_priority", "mission_yaml",
+                                  "mission_key", "mission_missing", "no_mission"])
 def test_malformed_params_or_mission_exit_nonzero(tmp_path, case):
     domain_id = random.randint(100, 230)
     good = tmp_path / "good.yaml"
@@ -247,6 +256,9 @@ def test_malformed_params_or_mission_exit_nonzero(tmp_path, case):
     elif case == "params_choice":
         args, expect = ["--params-file", _params(tmp_path, time_mode="sometimes", mission_file=str(good))], \
             "'time_mode' must be one of"
+    elif case == "params_priority":
+        args, expect = ["--params-file", _params(tmp_path, realtime_priority=120, mission_file=str(good))], \
+            "realtime_priority must be in 0..99"
     elif case == "mission_yaml":
         f = tmp_path / "m.yaml"
         f.write_text("path: [circle\n")
