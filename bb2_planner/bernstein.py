@@ -37,7 +37,7 @@ from functools import lru_cache
 from typing import Sequence
 
 import numpy as np
-from scipy import optimize, special, stats
+from scipy import special  # scipy.stats / scipy.optimize are imported where used (0.25 s per process)
 
 from bb2_sim import frames as _frames
 
@@ -86,6 +86,8 @@ def basis_matrix(n: int, tau: np.ndarray) -> np.ndarray:
     """
     tau = np.atleast_1d(np.asarray(tau, dtype=float))
     i = np.arange(n + 1)
+    from scipy import stats
+
     return stats.binom.pmf(i[None, :], n, np.clip(tau, 0.0, 1.0)[:, None])
 
 
@@ -479,6 +481,8 @@ class BernsteinPath:
         idx = idx[np.argsort(d2[idx])][:candidates]
         best = (ts[int(np.argmin(d2))], float(np.min(d2)))
         f = lambda t: float(np.sum((self(t) - p) ** 2))  # noqa: E731
+        from scipy import optimize
+
         for k in idx:
             lo, hi = ts[max(k - 1, 0)], ts[min(k + 1, m - 1)]
             r = optimize.minimize_scalar(f, bounds=(lo, hi), method="bounded",

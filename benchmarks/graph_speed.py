@@ -37,49 +37,57 @@ TS = 0.05  # the ROM's major step (s); one simulator step per Ts of sim time
 
 
 class Probe:
-    """An rclpy node (own context, own thread) taking the DDS source timestamps (writer's wall clock at
-    publication) of the simulator's states and the mixer's plane commands, per sim-time stamp.
+    """An rclpy node (own context) taking the DDS source timestamps (writer's wall clock at publication) of
+    the simulator's states and the mixer's plane commands, per sim-time stamp.
 
-    (The bag cannot give these: the recorder's publish times are its receive times on the sim clock.)
+    It polls (a thread takes whatever is queued every 20 ms, raw, with the message info) rather than
+    spinning an executor, so it does not wake a Python callback per message at the very moment the
+    controllers must answer: the measurement takes as little CPU from the measured loop as it can.
+    (The bag cannot give these times: the recorder's publish times are its receive times on the sim clock.)
     """
+
+    POLL_S = 0.02
 
     def __init__(self, domain_id: int):
         import threading
 
         import rclpy
         from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import HistoryPolicy
+        from rclpy.serialization import deserialize_message
         from rclpy.signals import SignalHandlerOptions
 
         from bb2_msgs_py import conversions as cv
         from bb2_msgs_py.contract import message_class, qos_profile
 
-        self.cv = cv
+        self.cv, self._deserialize = cv, deserialize_message
         self.state_src: dict[int, int] = {}
         self.cmd_src: dict[int, int] = {}
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("bb2_bench_probe", context=self.context, enable_rosout=False)
+        self.node = rclpy.create_node("bb2_bench_probe", context=self.context, enable_rosout=False,
+                                      start_parameter_services=False)
 
         def qos(name):
             q = qos_profile(name)
             q.history, q.depth = HistoryPolicy.KEEP_LAST, 1000
             return q
 
-        self.node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
-                                      self._on_state, qos("/bb2/state_native"))
-        self.node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd",
-                                      self._on_cmd, qos("/bb2/planes/cmd"))
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
+        def sub(type_name, name):
+            return self.node.create_subscription(message_class(type_name), name, lambda _m: None, qos(name), raw=True)
+
+        self._subs = [(sub("std_msgs/msg/Float64MultiArray", "/bb2/state_native"), self._on_state),
+                      (sub("sensor_msgs/msg/JointState", "/bb2/planes/cmd"), self._on_cmd)]
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread = threading.Thread(target=self._poll, daemon=True)
         self._thread.start()
 
-    def _spin(self) -> None:
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.1)
+    def _poll(self) -> None:
+        while not self._stop.wait(self.POLL_S):
+            for sub, handler in self._subs:
+                while (got := sub.handle.take_message(sub.msg_type, True)) is not None:
+                    data, info = got
+                    handler(self._deserialize(data, sub.msg_type), info)
 
     def _on_state(self, msg, info) -> None:
         t_ns = self.cv.seconds_to_ns(self.cv.state_native_from_message(msg).t)
@@ -93,7 +101,6 @@ class Probe:
 
         self._stop.set()
         self._thread.join(timeout=2.0)
-        self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)
 
@@ -226,6 +233,13 @@ def realtime(args, tmp: Path) -> None:
           f"{period_ms.mean():.3f} ms; |period - {1e3 / rate:g} ms| p50 {np.percentile(dev_ms, 50):.3f} ms, "
           f"p99 {np.percentile(dev_ms, 99):.3f} ms, max {dev_ms.max():.3f} ms   [goal p99 <= 1 ms]")
     lat_ms = np.array([(probe.cmd_src[s] - probe.state_src[s]) * 1e-6 for s in stamps if s in probe.cmd_src])
+    answered = [s for s in stamps if s in probe.cmd_src]
+    if answered:
+        before = sum(1 for s in stamps if s < answered[0])
+        after = sum(1 for s in stamps if s > answered[0] and s not in probe.cmd_src)
+        print(f"  states seen by the probe from t = {stamps[0] * 1e-9:.2f} s (it matches the simulator after its start): "
+              f"unanswered {before} before the first answer (t = {answered[0] * 1e-9:.2f} s; controllers still "
+              f"discovering, the simulator on the failsafe), {after} after it")
     if len(lat_ms):
         print(f"  loop latency /bb2/state_native -> /bb2/planes/cmd (same stamp, source timestamps): "
               f"{len(lat_ms)}/{len(stamps)} steps answered, p50 {np.percentile(lat_ms, 50):.3f} ms, "

@@ -172,6 +172,11 @@ def test_realtime_rejects_clamps_and_fails_safe(bench):
         assert st["scheduling"] == "SCHED_FIFO 50", st
     except PermissionError:
         assert st["scheduling"].startswith("normal (SCHED_FIFO 50 refused"), st
+    # and it holds /dev/cpu_dma_latency at 0 us where it may (root), else says why
+    if os.access("/dev/cpu_dma_latency", os.W_OK):
+        assert st["cpu_dma_latency"] == "held at 0 us", st
+    else:
+        assert st["cpu_dma_latency"].startswith("not held ("), st
 
     # NaN / inf: rejected, never integrated (the valid commands keep flowing)
     b.stream(0.6, planes_rad=[math.nan, 0, 0, 0, 0], omega=math.inf)
