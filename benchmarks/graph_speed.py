@@ -3,8 +3,8 @@
 1. Lockstep: the 500 s canyon mission (``missions/canyon.yaml`` with the simulator's ``duration_s``
    set to 500) with every node and the recorder, started by the launcher's own code
    (:mod:`bb2_tools.launcher`).  Prints the real-time factor (sim seconds per wall second while
-   stepping -- from the first step on, the start-up handshake at t = 0 excluded -- and including start-up) -- goal >= 20x -- and the message counts: what the simulator
-   published (its step count from ``trajectory_csv`` and its re-send counter from the last
+   stepping -- from the first step on, the start-up handshake at t = 0 excluded -- and including
+   start-up) -- goal >= 20x -- and the message counts: what the simulator published (its step count from ``trajectory_csv`` and its re-send counter from the last
    ``/bb2/status``) against what is in the bag, per topic -- goal: zero lost.
 2. Real time at 100 Hz (``rate_hz: 100``, 100 s of sim time = 20 s wall): a probe node takes the
    DDS source timestamps (the writer's wall clock) of ``/bb2/state_native`` and ``/bb2/planes/cmd``;
@@ -12,7 +12,8 @@
    plane-command loop latency, source time of the mixer's command minus that of the simulator's
    state with the same stamp -- goal p99 <= 3 ms.
 
-Usage: ``python benchmarks/graph_speed.py [--out DIR] [--rt-sim-s 100] [--lockstep-sim-s 500]``
+Usage: ``python benchmarks/graph_speed.py [--out DIR] [--rt-sim-s 100] [--lockstep-sim-s 500] [--only MODE]
+[--normal-scheduling]``
 (``bash run.sh bench`` runs it with the defaults; about 1-3 minutes of wall time on 2 cores).
 """
 from __future__ import annotations
@@ -219,10 +220,13 @@ def realtime(args, tmp: Path) -> None:
 
     out = tmp / "realtime"
     rate = 100.0
-    res, _, probe = run_graph_once(REPO / "missions" / "canyon.yaml", out, "realtime",
-                                   {"duration_s": float(args.rt_sim_s), "rate_hz": rate}, timeout_s=args.timeout,
+    params = {"duration_s": float(args.rt_sim_s), "rate_hz": rate}
+    if args.normal_scheduling:  # what a user without root gets
+        params.update(realtime_priority=0, hold_cpu_dma_latency=False)
+    res, _, probe = run_graph_once(REPO / "missions" / "canyon.yaml", out, "realtime", params, timeout_s=args.timeout,
                                    probe=True)
-    print(f"real time at {rate:g} Hz: {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s")
+    print(f"real time at {rate:g} Hz: {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s"
+          + (" (normal scheduling, cpu_dma_latency not held)" if args.normal_scheduling else ""))
     if res.exit_code != 0:
         return
     stamps = sorted(probe.state_src)
@@ -247,7 +251,8 @@ def realtime(args, tmp: Path) -> None:
     reader = BagReader(out)
     status = last_simulator_status(reader)
     print(f"  simulator status: overruns {status.get('overruns')}, failsafe steps {status.get('failsafe_steps')}, "
-          f"measured step rate {status.get('step_rate_hz')} Hz")
+          f"measured step rate {status.get('step_rate_hz')} Hz, stepping thread {status.get('scheduling')}, "
+          f"cpu_dma_latency {status.get('cpu_dma_latency')}")
 
 
 def main() -> int:
@@ -257,6 +262,9 @@ def main() -> int:
     ap.add_argument("--rt-sim-s", type=float, default=100.0)
     ap.add_argument("--timeout", type=float, default=900.0, help="wall limit per run (s)")
     ap.add_argument("--only", choices=("lockstep", "realtime"), default=None)
+    ap.add_argument("--normal-scheduling", action="store_true",
+                    help="real time without the simulator's SCHED_FIFO thread and cpu_dma_latency request "
+                         "(realtime_priority 0, hold_cpu_dma_latency false): what a user without root gets")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="bb2_graph_speed_") as t:
         tmp = args.out or Path(t)
