@@ -1,9 +1,9 @@
 """bb2-launch: fly a mission through the BB2 ROS 2 node graph, one process per node.
 
-The launcher starts the recorder first and waits until it is subscribed to every contract topic,
-then (lockstep) the simulator, which publishes the state at t = 0 and waits for the controllers, and
-once the simulator's publishers have been seen for a second, the planner, path following, L1
-autopilot and mixer (in real time the simulator starts last); each in its own process and process
+The launcher starts every node at once (their imports and mission builds overlap): in lockstep the
+simulator publishes its first state only once the recorder reads every topic it publishes, then waits
+for the controllers; in real time it starts last, once the recorder is subscribed to every contract
+topic, and steps on the failsafe until commands come.  Each node runs in its own process and process
 group, on an isolated ``ROS_DOMAIN_ID`` (a random free one unless ``--domain-id``).  A
 small rclpy monitor node inside the launcher shows sim time (``/clock``), mission progress
 (``/bb2/mission/progress``) and the real-time factor on one line.
@@ -180,6 +180,7 @@ class ProcessSpec:
     ready: Callable[[], bool] | None = None
     env: Mapping[str, str] | None = None
     nice: int = 0  # niceness increment (> 0: yields the CPU to the control loop; e.g. the recorder)
+    early: bool = False  # started at once by run_graph, alongside the ready-gated ones (needs nothing before it)
 
     def argv(self, attempt: int) -> list[str]:
         cmd = self.command(attempt) if callable(self.command) else self.command
@@ -722,8 +723,9 @@ class _StopFlag:
 def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[str] = (),
               ready_timeout_s: float = 30.0, timeout_s: float | None = None, status_period_s: float = 5.0,
               out=sys.stderr, handle_signals: bool = True) -> RunResult:
-    """Start ``first`` (waiting for readiness), then the rest; supervise until the mission ends,
-    a node fails, a signal arrives or ``timeout_s`` passes; stop everything; return the result."""
+    """Start the ``early`` specs at once, then ``first`` one by one (waiting for readiness), then the rest;
+    supervise until the mission ends, a node fails, a signal arrives or ``timeout_s`` passes; stop
+    everything; return the result."""
     flag = _StopFlag()
     previous = {}
     if handle_signals and threading.current_thread() is threading.main_thread():
@@ -744,10 +746,12 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
     try:
         try:
             interrupted = lambda: bool(flag.count)  # noqa: E731
+            early = [n for n in sup.order if sup.specs[n].early and n not in first]
+            sup.start(early, interrupted=interrupted)  # they import and build while the gated ones come up
             sup.start(first, ready_timeout_s=ready_timeout_s, interrupted=interrupted)
             report(sup.poll())
             if not interrupted() and sup.failure is None:
-                sup.start([n for n in sup.order if n not in first], interrupted=interrupted)
+                sup.start([n for n in sup.order if n not in first and n not in early], interrupted=interrupted)
         except LaunchError as exc:
             reason, code = f"start-up failed: {exc}", 1
         while not reason:
@@ -838,23 +842,6 @@ def check_params_file(path: Path) -> None:
             raise LaunchError(f"params file {path}: entry {node!r} needs a 'ros__parameters' mapping")
 
 
-class Settled:
-    """A readiness probe that is true once ``probe()`` has been true for ``settle_s`` seconds."""
-
-    def __init__(self, probe: Callable[[], bool], settle_s: float):
-        self.probe, self.settle_s = probe, settle_s
-        self._since: float | None = None
-
-    def __call__(self) -> bool:
-        if not self.probe():
-            self._since = None
-            return False
-        now = time.monotonic()
-        if self._since is None:
-            self._since = now
-        return now - self._since >= self.settle_s
-
-
 BACKGROUND_NICE = 10
 BACKGROUND_NODES = ("recorder", "planner")
 """Nodes off the control loop (state -> commands -> step), started with ``nice +BACKGROUND_NICE``: on a
@@ -868,12 +855,15 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 monitor: GraphMonitor | None = None, settle_s: float = 1.0) -> list[ProcessSpec]:
     """The process specs of the BB2 graph for one mission, in start order.
 
-    The specs with a ``ready`` probe come first and are started one by one, each once the previous
-    is ready: the recorder (subscribed to every contract topic), then in lockstep the simulator
-    (its publishers seen for ``settle_s``: it publishes the state at t = 0 and waits for the
-    controllers, so the recorder has discovered it before the first step).  In real time the
-    simulator starts last (it steps on the wall clock from its first tick, on the failsafe until
-    commands arrive).
+    The planner and the controllers, and in lockstep the simulator, are ``early``: :func:`run_graph`
+    starts them at once (each takes a second or two to import and build its part of the mission, which
+    then overlap).  The recorder has a ``ready`` probe (subscribed to every contract topic); in lockstep
+    the simulator, started with ``wait_for_readers``, publishes its first state only once every topic
+    it publishes has a reader (the recorder), so the bag misses nothing, and then waits for the
+    controllers (re-sending the state until they answer).  Without a recorder the simulator starts at
+    once.  In real time the simulator starts last, once the recorder is ready (it steps on the wall
+    clock from its first tick, on the failsafe until commands arrive).  ``monitor`` gives the recorder
+    its readiness probe; ``settle_s`` is kept for callers and unused.
     """
     from bb2_msgs_py.contract import select_topics
 
@@ -903,13 +893,13 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
         ros += ["-p", f"mission_file:={mission}"]
         if node.name == "simulator":
             ros += ["-p", f"time_mode:={mode}"]
+            if mode == "lockstep" and record:
+                ros += ["-p", "wait_for_readers:=true"]
         else:
             ros += ["-p", "use_sim_time:=true"]
-        ready = None
-        if node.name == "simulator" and mode == "lockstep" and monitor is not None:
-            ready = Settled(lambda m=monitor: m.publishes("simulator", "/bb2/odom"), settle_s)
         specs.append(ProcessSpec(node.name, [*base, *ros], policy, finishes_graph=node.name == "simulator",
-                                 ready=ready, nice=BACKGROUND_NICE if node.name in BACKGROUND_NODES else 0))
+                                 nice=BACKGROUND_NICE if node.name in BACKGROUND_NODES else 0,
+                                 early=node.name != "simulator" or mode == "lockstep"))
     first = [s for s in specs if s.ready is not None]
     return first + [s for s in specs if s.ready is None]
 

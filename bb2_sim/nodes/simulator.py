@@ -25,6 +25,9 @@ Parameters (``config/bb2_graph.yaml`` lists them all with their defaults):
 ``hold_cpu_dma_latency`` real time: hold ``/dev/cpu_dma_latency`` at 0 us while running (the PM QoS request
                        of cyclictest and RT setups: idle cores wake without deep C-state or halt exits;
                        measured here: a DDS round trip 150 -> 102 us).  Refused (not root): one warning.
+``wait_for_readers``   publish the first state only once every topic this node publishes has had a reader (a
+                       recorder started alongside) for ``startup_settle_s`` (the readers' side matches the
+                       writers a moment later: it then misses nothing), at most ``startup_timeout_s``.
 ``command_timeout_s``  real time: a command older than this (wall time since it arrived), or none at all,
                        engages the failsafe: planes commanded to neutral (0 rad), propeller held at the last
                        valid command (the mission's nominal speed command if none ever arrived).
@@ -132,6 +135,10 @@ class SimulatorShell:
         csv_path = P("trajectory_csv", "", "write t and the native state of every step to this CSV ('' = off)")
         self.min_state_subscribers = int(P("min_state_subscribers", 0,
                                            "wait for this many /bb2/state_native readers before the first step"))
+        self._readers_since: float | None = None
+        self.wait_for_readers = bool(P("wait_for_readers", False,
+                                       "publish the first state only once every topic published here has a "
+                                       "reader (a recorder), at most startup_timeout_s"))
         self.status_period_s = require_positive("status_period_s", P(
             "status_period_s", 1.0, "wall period of /bb2/status"))
         throttle_s = require_positive("warn_throttle_s", P(
@@ -329,12 +336,22 @@ class SimulatorShell:
         """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
         after ``startup_timeout_s``), so that a recorder or a test started with the graph misses nothing."""
         n = self.node.count_subscribers("/bb2/state_native")
-        waited = time.monotonic() - self._t_start_wall
-        if n < self.min_state_subscribers and waited < self.startup_timeout_s:
+        unread = [t for t in self.pub if self.node.count_subscribers(t) == 0] if self.wait_for_readers else []
+        now = time.monotonic()
+        if self.wait_for_readers and not unread:  # every topic read: let the readers' side match too
+            self._readers_since = self._readers_since or now
+            if now - self._readers_since < self.startup_settle_s:
+                unread = ["(matching)"]
+        else:
+            self._readers_since = None
+        waited = now - self._t_start_wall
+        if (n < self.min_state_subscribers or unread) and waited < self.startup_timeout_s:
             return
         if n < self.min_state_subscribers:
             self.warn.warn("start", f"starting with {n} of {self.min_state_subscribers} subscribers of "
                                     f"/bb2/state_native after {waited:.1f} s")
+        if unread:
+            self.warn.warn("start_readers", f"starting after {waited:.1f} s with no reader of {', '.join(unread)}")
         self.start_timer.cancel()
         self.started = True
         self._next_tick = time.monotonic()

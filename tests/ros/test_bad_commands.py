@@ -7,6 +7,7 @@ import math
 import os
 import random
 import signal
+import sys
 import subprocess
 import threading
 import time
@@ -146,6 +147,7 @@ def bench(tmp_path):
                    _params(tmp_path, mission_file=str(mission), **params))
         procs.append(p)
         return p
+    b.domain_id = domain_id
     yield b, start
     for p in procs:
         if p.poll() is None:
@@ -243,6 +245,37 @@ def test_lockstep_timeout_holds_commands_and_resumes(bench):
     b.wait(lambda: b.last_status().get("failsafe") == "false", 5, "failsafe released", sim)
     assert len(answered) > 40  # much faster than one step per timeout
     assert int(b.last_status()["lockstep_timeouts"]) <= n0 + 2
+
+
+def test_wait_for_readers_holds_the_first_state_until_a_recorder_reads_every_topic(bench, tmp_path):
+    """bb2-launch starts the simulator alongside the recorder with wait_for_readers: no state (and no /clock)
+    goes out while a published topic has no reader, so the bag starts with the very first message."""
+    from bb2_tools.bagfile import BagReader
+
+    from rosenv import ros_env
+
+    b, start = bench
+    sim = start(wait_for_readers=True, startup_timeout_s=60.0, lockstep_timeout_s=60.0)
+    b.wait(lambda: b.node.count_publishers("/bb2/state_native") > 0, 20, "simulator up", sim)
+    time.sleep(2.0)
+    assert not b.states  # the bench reads state, planes and status only: /clock, /bb2/odom ... have no reader
+    bag = tmp_path / "bag"
+    rec = subprocess.Popen([sys.executable, "-m", "bb2_tools.recorder", "--out", str(bag), "--use-sim-time"],
+                           cwd=REPO, env=ros_env(b.domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           text=True)
+    try:
+        b.wait(lambda: b.states, 30, "the first state once the recorder reads every topic", sim)
+        assert b.states[0].t == 0.0
+        time.sleep(1.0)
+    finally:
+        rec.send_signal(signal.SIGINT)
+        out = rec.communicate(timeout=30)[0]
+    assert rec.returncode == 0, out
+    reader = BagReader(bag)
+    counts = reader.message_counts
+    assert counts.get("/clock", 0) >= 1 and counts.get("/bb2/odom", 0) >= 1 and counts.get("/bb2/depth", 0) >= 1
+    first_odom = next(iter(reader.messages("/bb2/odom")))[2]
+    assert cv.stamp_to_ns(first_odom.header.stamp) == 0  # the t = 0 odometry is in the bag
 
 
 @pytest.mark.parametrize("case", ["params_yaml", "params_type", "params_choice", "params_priority", "mission_yaml",

@@ -154,28 +154,48 @@ def test_graph_specs_pass_mission_mode_params_and_sim_time(tmp_path):
     assert "recorder" not in [s.name for s in L.graph_specs(mission, run, record=False, runner="python")]
 
 
-def test_lockstep_start_order_recorder_then_simulator_then_controllers(tmp_path):
+def test_lockstep_start_everything_at_once_the_simulator_waits_for_the_recorder(tmp_path):
     class FakeMonitor:
-        seen = False
-
         def subscribed(self, node, topics):
-            return True
+            return node == "bb2_recorder"
 
-        def publishes(self, node, topic):
-            return node == "simulator" and topic == "/bb2/odom" and self.seen
+    specs = L.graph_specs(tmp_path / "m.yaml", tmp_path / "run", mode="lockstep", runner="python",
+                          monitor=FakeMonitor())
+    by = {s.name: s for s in specs}
+    assert [s.name for s in specs][0] == "recorder" and by["recorder"].ready is not None and by["recorder"].ready()
+    # every other node starts at once (run_graph: early); the simulator publishes its first state only once
+    # every topic it publishes has a reader (the recorder)
+    assert [s.name for s in specs if s.early] == ["planner", "path_following", "l1_autopilot", "mixer", "simulator"]
+    assert all(s.ready is None for s in specs[1:])
+    assert "wait_for_readers:=true" in by["simulator"].argv(0)
+    # no recorder: nothing to wait for
+    specs = L.graph_specs(tmp_path / "m.yaml", tmp_path / "run", mode="lockstep", runner="python", record=False)
+    assert "wait_for_readers:=true" not in {s.name: s for s in specs}["simulator"].argv(0)
+    # real time: the simulator starts last, after the recorder is ready (it steps from its first tick)
+    specs = L.graph_specs(tmp_path / "m.yaml", tmp_path / "run", mode="realtime", runner="python",
+                          monitor=FakeMonitor())
+    assert [s.name for s in specs if not s.early] == ["recorder", "simulator"]
+    assert [s.name for s in specs][-1] == "simulator"
 
-    mon = FakeMonitor()
-    specs = L.graph_specs(tmp_path / "m.yaml", tmp_path / "run", mode="lockstep", runner="python", monitor=mon,
-                          settle_s=0.2)
-    assert [s.name for s in specs] == ["recorder", "simulator", "planner", "path_following", "l1_autopilot",
-                                       "mixer"]
-    sim = specs[1]
-    assert sim.ready is not None and not sim.ready()
-    mon.seen = True
-    assert not sim.ready()  # seen, but not yet for settle_s
-    time.sleep(0.25)
-    assert sim.ready()
-    assert all(s.ready is None for s in specs[2:])
+
+def test_run_graph_starts_early_nodes_before_the_gated_ones_are_ready(tmp_path):
+    """An early spec runs while the first gated spec waits for readiness: here the gate is only ready once
+    the early process has written its file (without 'early' it would never start: start-up timeout)."""
+    flag = tmp_path / "early_ran"
+    py = sys.executable
+    early = L.ProcessSpec("early", [py, "-c", f"import pathlib, time; pathlib.Path({str(flag)!r}).touch(); "
+                                              "time.sleep(30)"], early=True)
+    gated = L.ProcessSpec("gated", [py, "-c", "import time; time.sleep(30)"], ready=flag.exists)
+    last = L.ProcessSpec("last", [py, "-c", "import sys; sys.exit(0)"], finishes_graph=True)
+    sup = L.Supervisor([gated, early, last], tmp_path / "logs")
+    try:
+        t0 = time.monotonic()
+        res = L.run_graph(sup, None, first=["gated"], ready_timeout_s=15.0, timeout_s=30.0, handle_signals=False)
+    finally:
+        sup.stop(hurry=True)
+    assert flag.exists() and res.exit_code == 0, res
+    assert res.reason == "node 'last' finished (exit code 0)"
+    assert time.monotonic() - t0 < 15.0
 
 
 def test_bad_input_exits_2_with_one_clear_message(tmp_path, capsys):
