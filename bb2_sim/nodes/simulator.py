@@ -432,7 +432,14 @@ class SimulatorShell:
             with self._lock:
                 if self._rt_stop.is_set():
                     break
-                self._tick(period)
+                try:
+                    self._tick(period)
+                except Exception as exc:  # never a silent dead stepping thread: the node exits 1, says why
+                    self.diverged = self.diverged or f"stepping thread failed: {type(exc).__name__}: {exc}"
+                    self.exit_code = 1
+                    self.node.get_logger().error(self.diverged)
+                    self.done = True
+                    return
 
     def _hold_cpu_dma_latency(self) -> None:
         """PM QoS: 0 us wake-up latency for as long as the file stays open (closed in :meth:`close`)."""

@@ -239,11 +239,19 @@ def test_replay_republishes_recorded_odometry_with_pause_offset_and_filter(recor
               for _, d in listener.got["/clock"]]
     assert clocks and clocks == sorted(clocks) and clocks[0] >= cv.seconds_to_ns(offset_s)
     assert set(clocks) <= {m.log_time_ns for m in want}
-    # the pause shows as the longest gap of the DDS send times (the pacing itself, rate and pause arithmetic,
-    # is checked deterministically in test_playback_clock_rate_and_pause)
+    # the pause shows as the longest gap of the DDS send times (the rate and pause arithmetic itself is
+    # checked deterministically in test_playback_clock_rate_and_pause)
     walls = np.array([w for w, _ in got])
     gaps = np.diff(walls)
     assert gaps.max() > 1.0  # the pause
+    # paced at --rate 0.5 over DDS: the recorded span took twice as long in send times (less the pause). A
+    # replayer can only fall behind its clock, never run ahead of it, so the lower bound holds under any load;
+    # the upper one is loose (a loaded machine may delay sends)
+    log_s = np.array([want[k].log_time_ns for k in idx]) * 1e-9
+    log_span_s, period_s = log_s[-1] - log_s[0], np.diff(log_s).max()
+    played_s = walls[-1] - walls[0] - gaps.max()  # less the pause (and the one recorded period it spans)
+    assert log_span_s > 1.0
+    assert (log_span_s - period_s) / 0.5 - 0.02 <= played_s <= log_span_s / 0.5 + 3.0, (played_s, log_span_s)
 
 
 def test_replay_service_pause_loop_and_clean_sigint(recorded):
