@@ -31,7 +31,10 @@ Definitions (those of :mod:`bb2_tools.mission`, so analysis and runner agree by 
 * ground clearance: ``z - z_terrain(x, y)`` of the CG (vertical, native) and of the lowest hull probe when
   the mission's terrain is known (``--mission``, or the bag's ``custom_data`` ``mission_file``, or the
   simulator's ``/bb2/status`` ``mission_file``); else the altimeter's minimum (``/bb2/altitude``);
-* mission time: the time of the last recorded state; real-time factor: sim time over the wall time of the
+* the end: a bag whose ``/bb2/mission/progress`` reaches 1 (the path follower's virtual time at the path's
+  end: the runner's ``finished``) is analysed up to that tick and the state after it, as the runner ends
+  there; what the graph recorded after (the launcher stops on the progress it sees) is left out, with a note;
+* mission time: the time of the last analysed state; real-time factor: sim time over the wall time of the
   states' DDS source timestamps (else the simulator's status value);
 * maneuver figures (``--maneuver NAME`` or ``custom_data`` ``maneuver``): :func:`bb2_sim.metrics.figures_for`
   on the maneuver CSV columns rebuilt from the bag.
@@ -42,6 +45,7 @@ Exit codes: 0 done; 2 bad input (no bag, not a bag, no usable topics, bad missio
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -486,6 +490,23 @@ def _maneuver_traj(run: BagRun) -> dict[str, np.ndarray]:
     return traj
 
 
+def _until_finished(run: BagRun, notes: list[str]) -> BagRun:
+    """``run`` cut after the state that follows the first tick with progress >= 1 (the runner's end)."""
+    if not len(run.progress):
+        return run
+    done = np.flatnonzero(run.progress.v[:, 0] >= 1.0)
+    if not len(done):
+        return run
+    fin_ns = int(run.progress.stamp_ns[done[0]])
+    m = int(np.searchsorted(run.stamps_ns, fin_ns, side="right")) + 1  # ticks up to fin_ns, and the next state
+    if m >= len(run.t):
+        return run
+    notes.append(f"the mission finished at t = {fin_ns * 1e-9:.2f} s (progress 1): analysed up to the state after "
+                 f"that tick, as the runner; {len(run.t) - m} later state(s) recorded, not analysed")
+    return dataclasses.replace(run, t=run.t[:m], x=run.x[:m], stamps_ns=run.stamps_ns[:m],
+                               state_publish_ns=run.state_publish_ns[:m])
+
+
 def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
             maneuver_settings: Mapping[str, Any] | None = None) -> Analysis:
     """Compute the figures of a decoded bag (see the module docstring for every definition)."""
@@ -493,6 +514,8 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
     from bb2_tools.mission import path_errors_closest
 
     warnings = list(run.warnings)
+    recorded_time_s = float(run.t[-1] - run.t[0])
+    run = _until_finished(run, warnings)
     figs: dict[str, float] = {}
     n = len(run.t)
     tick = np.ones(n, bool)
@@ -513,7 +536,7 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
                             "analysing against the bag's")
 
     figs["mission_time_s"] = float(run.t[-1])
-    figs["recorded_time_s"] = float(run.t[-1] - run.t[0])
+    figs["recorded_time_s"] = recorded_time_s
     figs["ticks"] = float(tick.sum())  # states stepped from
 
     # path errors: the stack's own (p_T of /bb2/guidance/path_error) and from the closest path point

@@ -21,6 +21,7 @@ import sys
 from typing import Sequence
 
 import numpy as np
+from std_msgs.msg import Float64
 
 from bb2_control.errors import NonFiniteInputError, PathFollowingError
 from bb2_msgs_py import conversions as cv
@@ -121,16 +122,22 @@ class PathFollowingShell:
         st = time_msg(stamp_ns)
         rate = cv.rate_command_message(state.t, pf.q_c, pf.r_c)
         rate.header.stamp = st
-        self.pub["/bb2/guidance/rate_cmd"].publish(rate)  # first: the autopilot waits for it
+        path = stack.path
+        progress = Float64(data=float(np.interp(min(pf.gamma, path.tf), self._s_t, self._s)) / self.length_m)
+        self.finished = bool(pf.finished)
+        first = []
+        if progress.data >= 1.0:
+            # the finishing tick's progress goes out before the rate command: it then reaches a recorder before
+            # the /clock of the next step can (the simulator steps only once this answer went round), so the
+            # bag logs it at this tick's time, where bb2-analyze ends the mission as the runner does
+            self.pub["/bb2/mission/progress"].publish(progress)
+            first = [(self.pub["/bb2/mission/progress"], progress)]
+        self.pub["/bb2/guidance/rate_cmd"].publish(rate)  # first (else): the autopilot waits for it
         err = cv.path_error_message(state.t, pf.p_T)
         err.header.stamp = st
-        from std_msgs.msg import Float64
-        path = stack.path
-        progress = float(np.interp(min(pf.gamma, path.tf), self._s_t, self._s)) / self.length_m
-        self.finished = bool(pf.finished)
-        self.cache.store(stamp_ns, [(self.pub["/bb2/guidance/path_error"], err),
-                                    (self.pub["/bb2/mission/progress"], Float64(data=float(progress)))],
-                         replay_also=[(self.pub["/bb2/guidance/rate_cmd"], rate)])
+        rest = [(self.pub["/bb2/guidance/path_error"], err)] + ([] if first else
+                                                                [(self.pub["/bb2/mission/progress"], progress)])
+        self.cache.store(stamp_ns, rest, replay_also=first + [(self.pub["/bb2/guidance/rate_cmd"], rate)])
         self.counts["answered"] += 1
 
 

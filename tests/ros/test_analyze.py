@@ -84,7 +84,7 @@ def _publish_answers(bag: _Bag, t: float, out) -> None:
 
 
 def write_mission_bag(mission, out: Path, *, custom: dict[str, str] | None = None, chunk_size: int = 64 * 1024,
-                      topics: set[str] | None = None):
+                      topics: set[str] | None = None, progress_one_at: float | None = None):
     """Fly ``mission`` with the library runner, writing the graph's messages of every tick; (bag, result)."""
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
     from std_msgs.msg import Header
@@ -102,6 +102,10 @@ def write_mission_bag(mission, out: Path, *, custom: dict[str, str] | None = Non
         rows.append(st.row)
         _publish_state(bag, st.state, mission.terrain)
         _publish_answers(bag, st.state.t, st.output)
+        if progress_one_at is not None:  # as the path follower: 1 from the tick its virtual time ends on
+            from std_msgs.msg import Float64
+            t = st.state.t
+            bag.put("/bb2/mission/progress", Float64(data=1.0 if t >= progress_one_at - 1e-9 else t / 1e3), t)
         if st.record is not None:
             bag.put("/bb2/planes/state", cv.planes_message(st.record.t, np.radians(st.record.act.planes_deg)),
                     st.record.t)
@@ -173,6 +177,24 @@ def test_path_errors_equal_runner(bags):
     assert 0.0 <= f["planes_any_saturated_fraction"] <= 1.0
     assert math.isfinite(f["real_time_factor"]) and f["real_time_factor"] > 0
     assert "min_clearance_m" not in f  # circle: no terrain, no altimeter
+
+
+def test_analysis_ends_where_the_mission_finished(bags):
+    """A graph run records past the finish (the launcher stops on the progress it sees): the analysis stops at
+    the tick whose progress is 1 and the state after it, so its figures are those of a run that ended there."""
+    bag_a, runner_a, traj_a = bags["circle"]  # ended by its 40 s duration: last tick t = 39.95 s
+    longer = _short("circle", 46.0)
+    bag_b, _, _ = write_mission_bag(longer, bags["root"] / "circle_past_finish", progress_one_at=39.95)
+    a = an.analyze(an.read_bag(bag_a))
+    b = an.analyze(an.read_bag(bag_b))
+    assert int(b.figures["ticks"]) == int(a.figures["ticks"]) == len(traj_a["t_s"])
+    for k in ("rms_vertical_m", "max_vertical_m", "rms_horizontal_m", "max_horizontal_m", "mission_time_s",
+              "rms_vertical_closest_m"):
+        assert b.figures[k] == a.figures[k], k
+    assert b.figures["mission_time_s"] == pytest.approx(40.0)
+    assert b.figures["recorded_time_s"] == pytest.approx(46.0)
+    assert any("finished at t = 39.95 s" in w and "not analysed" in w for w in b.warnings)
+    assert not any("finished at" in w for w in a.warnings)
 
 
 def test_odometry_only_bag(bags):
