@@ -420,7 +420,7 @@ class SimulatorShell:
                 late = 0
             else:
                 late += 1
-                if late == int(self.rate_hz) and self.realtime_priority > 0:
+                if late == max(1, round(self.rate_hz)) and self.realtime_priority > 0:
                     # a real-time thread that never sleeps would starve its core: give the priority up
                     try:
                         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
