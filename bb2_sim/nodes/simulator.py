@@ -427,8 +427,9 @@ class SimulatorShell:
                         self.scheduling = "normal (SCHED_FIFO given up: overruns)"
                     except (OSError, AttributeError):
                         pass
-                    self.warn.warn("rt_drop", f"every step for 1 s took longer than the period at {self.rate_hz:g} "
-                                              "Hz: stepping thread back to normal scheduling")
+                    self.warn.warn("rt_drop", f"{late} steps in a row (a second's worth at {self.rate_hz:g} Hz) "
+                                              "left no time before the next deadline: stepping thread back to "
+                                              "normal scheduling")
             with self._lock:
                 if self._rt_stop.is_set():
                     break

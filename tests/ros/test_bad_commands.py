@@ -247,6 +247,25 @@ def test_lockstep_timeout_holds_commands_and_resumes(bench):
     assert int(b.last_status()["lockstep_timeouts"]) <= n0 + 2
 
 
+def test_realtime_thread_gives_up_fifo_when_it_overruns_every_step(bench):
+    """A SCHED_FIFO stepping thread that never gets to sleep would starve its core: at a rate it cannot hold
+    (2 kHz: the ROM step alone takes longer than 0.5 ms), after a second of overruns it drops to normal
+    scheduling, says so, and keeps stepping."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except PermissionError:
+        pytest.skip("SCHED_FIFO not permitted here (needs root or an rtprio limit): nothing to give up")
+    b, start = bench
+    sim = start(time_mode="realtime", rate_hz=2000.0, status_period_s=0.2, warn_throttle_s=0.2)
+    b.wait(lambda: b.last_status().get("scheduling", "").startswith("normal (SCHED_FIFO given up"), 20,
+           "the stepping thread giving SCHED_FIFO up", sim)
+    st = b.last_status()
+    assert int(st["overruns"]) >= 100 and int(st["step"]) >= 1990  # ~2000 late steps in a row before giving up
+    n = int(st["step"])
+    b.wait(lambda: int(b.last_status().get("step", 0)) > n + 50, 10, "stepping on", sim)
+
+
 def test_wait_for_readers_holds_the_first_state_until_a_recorder_reads_every_topic(bench, tmp_path):
     """bb2-launch starts the simulator alongside the recorder with wait_for_readers: no state (and no /clock)
     goes out while a published topic has no reader, so the bag starts with the very first message."""
