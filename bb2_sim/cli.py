@@ -11,7 +11,6 @@ import argparse
 import math
 import sys
 from dataclasses import asdict
-from pathlib import Path
 
 
 class InputError(ValueError):

@@ -6,8 +6,6 @@ are those of the authors' force functions, including their odd dimensions (quirk
 """
 from __future__ import annotations
 
-import math
-
 from .parameters import RomParameters
 from .tables import RomTables
 

@@ -525,7 +525,6 @@ class GraphMonitor:
         self.status_end = False  # the simulator's status says the mission duration is over
         self.sim_error: str | None = None  # the simulator's status says it stopped on an error
         self.end_at = end_at
-        self.clock_count = 0
         self._samples: collections.deque[tuple[float, float]] = collections.deque()
         self._first: tuple[float, float] | None = None  # the first /clock (start-up handshake at t0)
         self._first_step: tuple[float, float] | None = None  # the first /clock after t0 (stepping started)
@@ -587,7 +586,6 @@ class GraphMonitor:
         t = sec + nsec * 1e-9
         with self._lock:
             self.sim_time_s = t
-            self.clock_count += 1
             if self._first is None:
                 self._first = (wall, t)
             elif self._first_step is None and t != self._first[1]:
@@ -616,15 +614,13 @@ class GraphMonitor:
         """Sim seconds per wall second over the last window, or (``overall``) while stepping: from the
         first /clock after the start time (the first step done; the graph's start-up handshake at t0,
         which waits for every node to answer, is not stepping) to the last one."""
+        if overall:
+            sim_s, wall_s = self.stepping_span()
+            return sim_s / wall_s if wall_s else None
         with self._lock:
-            if overall:
-                if self._first_step is None or not self._samples:
-                    return None
-                (w0, t0), (w1, t1) = self._first_step, self._samples[-1]
-            else:
-                if len(self._samples) < 2:
-                    return None
-                (w0, t0), (w1, t1) = self._samples[0], self._samples[-1]
+            if len(self._samples) < 2:
+                return None
+            (w0, t0), (w1, t1) = self._samples[0], self._samples[-1]
         return (t1 - t0) / (w1 - w0) if w1 > w0 else None
 
     def stepping_span(self) -> tuple[float | None, float | None]:
@@ -651,10 +647,6 @@ class GraphMonitor:
             if not any(i.node_name == node_name for i in self.node.get_subscriptions_info_by_topic(t)):
                 return False
         return True
-
-    def publishes(self, node_name: str, topic: str) -> bool:
-        """Whether ``node_name`` has a publisher on ``topic`` (as discovered here)."""
-        return any(i.node_name == node_name for i in self.node.get_publishers_info_by_topic(topic))
 
     def close(self) -> None:
         import rclpy
@@ -852,7 +844,7 @@ absorb the delay; the planner only publishes the path), not the loop's."""
 def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params: Path | None = None,
                 record: bool = True, runner: str = "auto",
                 policies: Mapping[str, RestartPolicy] | None = None,
-                monitor: GraphMonitor | None = None, settle_s: float = 1.0) -> list[ProcessSpec]:
+                monitor: GraphMonitor | None = None) -> list[ProcessSpec]:
     """The process specs of the BB2 graph for one mission, in start order.
 
     The planner and the controllers, and in lockstep the simulator, are ``early``: :func:`run_graph`
@@ -863,7 +855,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     controllers (re-sending the state until they answer).  Without a recorder the simulator starts at
     once.  In real time the simulator starts last, once the recorder is ready (it steps on the wall
     clock from its first tick, on the failsafe until commands arrive).  ``monitor`` gives the recorder
-    its readiness probe; ``settle_s`` is kept for callers and unused.
+    its readiness probe.
     """
     from bb2_msgs_py.contract import select_topics
 

@@ -3,9 +3,9 @@ MCAP, analyse the bag, and say where everything is.
 
     python -m bb2_tools.main_job [--mission missions/canyon.yaml] [--mode lockstep|realtime] [--bag-dir bags]
 
-Steps: ``bb2-launch MISSION --mode lockstep`` (every node its own process, isolated ROS_DOMAIN_ID, recorder
-first) -> ``bb2-analyze BAG --mission MISSION`` (path errors, clearance, command statistics, paper-style
-figures, one HTML report) -> summary. Exit status: the launcher's (0 mission complete) or the analysis's.
+Steps: ``bb2-launch MISSION --mode lockstep`` (every node its own process, isolated ROS_DOMAIN_ID, the
+simulator's first state once the recorder reads every topic) -> ``bb2-analyze BAG --mission MISSION`` (path
+errors, clearance, command statistics, paper-style figures, one HTML report) -> summary. Exit status: the launcher's (0 mission complete) or the analysis's.
 """
 from __future__ import annotations
 

@@ -19,6 +19,7 @@ Topic remapping is the standard ROS 2 one: ``--ros-args -r /bb2/odom:=/other/odo
 """
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import threading
@@ -158,8 +159,6 @@ def _error(name: str, message: str) -> None:
 def make_executor():
     """rclpy's EventsExecutor (C++ event queue, several times less overhead per callback than the
     SingleThreadedExecutor; rclpy.experimental in Jazzy) unless ``BB2_EXECUTOR=single``."""
-    import os
-
     from rclpy.executors import SingleThreadedExecutor
 
     if os.environ.get("BB2_EXECUTOR", "events") != "single":
@@ -174,16 +173,13 @@ def make_executor():
 
 def _profiler():
     """A running cProfile profiler when ``BB2_PROFILE_DIR`` is set (a developer's switch: the spin
-    loop's profile (thread CPU time) is written to ``$BB2_PROFILE_DIR/<node>-<pid>.prof`` at exit; read it with pstats)."""
-    import os
-
+    loop's profile (thread CPU time) is written to ``$BB2_PROFILE_DIR/<node>-<pid>.prof`` at exit; read it
+    with pstats)."""
     if not os.environ.get("BB2_PROFILE_DIR"):
         return None
     import cProfile
 
     os.makedirs(os.environ["BB2_PROFILE_DIR"], exist_ok=True)
-    import time
-
     # CPU time (not wall): what a node costs its core, blocking waits excluded
     prof = cProfile.Profile(time.thread_time)
     prof.enable()
@@ -226,7 +222,6 @@ def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str]
         finally:
             if profiler is not None:
                 profiler.disable()
-                import os
                 profiler.dump_stats(os.path.join(os.environ["BB2_PROFILE_DIR"], f"{name}-{os.getpid()}.prof"))
         code = int(getattr(shell, "exit_code", EXIT_OK))
     except Exception as exc:

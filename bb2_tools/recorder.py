@@ -133,7 +133,6 @@ class Recorder:
                  use_sim_time: bool = False):
         from rclpy.clock import Clock, ClockType
         from rclpy.node import Node
-        from rclpy.serialization import deserialize_message
 
         self.bag = bag
         # parameter services are not spun (the recorder waits on its subscriptions only, see spin_once)

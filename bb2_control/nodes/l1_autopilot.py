@@ -64,7 +64,6 @@ class L1AutopilotShell:
             "adaptation": str(self.stack.adaptation).lower(), **{k: str(v) for k, v in self.counts.items()}})
 
     def _on_rate(self, msg) -> None:
-
         try:
             q_c, r_c = cv.rate_command_from_message(msg)
         except cv.ConversionError as exc:
@@ -100,7 +99,6 @@ class L1AutopilotShell:
                 del d[min(d)]
 
     def _answer(self, ns: int, state, rate: tuple[float, float]) -> None:
-
         stack = self.stack
         try:
             x = stack.inputs(state)  # the stack's own frame conversion (shared with Stack.step)

@@ -45,7 +45,6 @@ class MixerShell:
             "mission": self.mission.name, **{k: str(v) for k, v in self.counts.items()}})
 
     def _on_vh(self, msg) -> None:
-
         ns = cv.stamp_to_ns(msg.header.stamp)
         if self.cache.replay(ns):
             self.counts["replayed"] += 1

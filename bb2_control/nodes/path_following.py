@@ -93,7 +93,6 @@ class PathFollowingShell:
                                     f"length {self.length_m:.1f} m")
 
     def _on_path(self, msg) -> None:
-
         try:
             path = cv.bernstein_from_message(msg, name=self.mission.path.name)
         except cv.ConversionError as exc:
@@ -102,7 +101,6 @@ class PathFollowingShell:
         self._build(path)
 
     def _on_state(self, state, stamp_ns: int) -> None:
-
         self.counts["states"] += 1
         if self.stack is None:
             self.counts["waiting_for_path"] += 1

@@ -231,7 +231,6 @@ class SimulatorShell:
 
     # ------------------------------------------------------------------------------------ commands
     def _check_header(self, msg, what: str) -> bool:
-
         if msg.header.frame_id != FRAME_BASE_LINK:
             self.counters["rejected_frame"] += 1
             self.warn.warn(f"frame_{what}", f"rejected {what} command: frame_id {msg.header.frame_id!r}, "
@@ -261,7 +260,6 @@ class SimulatorShell:
         return True
 
     def _on_planes(self, msg) -> None:
-
         try:
             if len(msg.name) != len(PLANE_JOINTS) or len(set(msg.name)) != len(msg.name):
                 raise cv.ConversionError(f"expected the {len(PLANE_JOINTS)} joints {list(PLANE_JOINTS)}, "
@@ -289,7 +287,6 @@ class SimulatorShell:
             self._maybe_advance()
 
     def _on_propeller(self, msg) -> None:
-
         try:
             if list(msg.name) != [PROPELLER_JOINT]:
                 raise cv.ConversionError(f"expected the joint [{PROPELLER_JOINT!r}], got {list(msg.name)}")

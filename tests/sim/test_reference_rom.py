@@ -5,7 +5,6 @@ gives the state at t_k, the total load F at that major step and the actuator out
 autopilot (bb2_sim.autopilot_v12) on the authors' surfaces and compare every step.
 """
 import json
-import math
 
 import numpy as np
 import pytest
