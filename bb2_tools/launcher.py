@@ -48,6 +48,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Mapping, Sequence
 
+from bb2_tools.node_common import take_all
+
 POLICIES = ("stop", "restart", "ignore")
 DEFAULT_MAX_RESTARTS = 3
 RECORDER_NODE_NAME = "bb2_recorder"
@@ -570,14 +572,9 @@ class GraphMonitor:
     def _poll(self) -> None:
         """Take the latest /clock and progress (if new ones came)."""
         for sub, handler in ((self._clock_sub, self._on_clock), (self._progress_sub, self._on_progress)):
-            last = None
-            while True:
-                got = sub.handle.take_message(sub.msg_type, True)
-                if got is None:
-                    break
-                last = got
-            if last is not None:
-                data, info = last
+            got = take_all(sub)
+            if got:
+                data, info = got[-1]
                 handler(data, int(info.get("source_timestamp", 0)) * 1e-9 or time.time())
 
     def _on_clock(self, data: bytes, wall: float) -> None:

@@ -364,6 +364,16 @@ def subscribe_state(node, source: str, callback: Callable[[Any, int], None]):
                                     qos_profile("/bb2/odom"))
 
 
+def take_all(subscription) -> list[tuple[bytes, dict]]:
+    """Every message waiting on a raw (``raw=True``) subscription, oldest first, each with its message info
+    (``source_timestamp``, ``received_timestamp``, ...): for readers that wait or poll themselves instead of
+    taking an executor callback per message (the recorder, the launcher's monitor, the benchmark's probe)."""
+    out = []
+    while (got := subscription.handle.take_message(subscription.msg_type, True)) is not None:
+        out.append(got)
+    return out
+
+
 def time_msg(stamp_ns: int):
     """``builtin_interfaces/Time`` of integer nanoseconds (exact, no float round trip)."""
     from builtin_interfaces.msg import Time

@@ -39,6 +39,7 @@ from typing import Any, Sequence
 
 from bb2_msgs_py.contract import ContractError, TopicSpec, message_class, select_topics
 from bb2_tools.bagfile import BagError, BagWriter, qos_entry
+from bb2_tools.node_common import take_all
 
 ODOM_TOPIC = "/bb2/odom"
 CLOCK_TOPIC = "/clock"
@@ -187,11 +188,7 @@ class Recorder:
         for sub, spec in self._subs:
             if sub.handle.pointer not in ready:
                 continue
-            while True:
-                got = sub.handle.take_message(sub.msg_type, True)
-                if got is None:
-                    break
-                data, info = got
+            for data, info in take_all(sub):
                 taken.append((int(info.get("received_timestamp", 0)), len(taken), spec, data, info))
         taken.sort(key=lambda m: (m[0], m[1]))
         for _recv, _k, spec, data, info in taken:

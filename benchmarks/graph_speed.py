@@ -33,6 +33,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from bb2_tools import launcher as L  # noqa: E402
+from bb2_tools.node_common import take_all  # noqa: E402
 
 TS = 0.05  # the ROM's major step (s); one simulator step per Ts of sim time
 
@@ -86,8 +87,7 @@ class Probe:
     def _poll(self) -> None:
         while not self._stop.wait(self.POLL_S):
             for sub, handler in self._subs:
-                while (got := sub.handle.take_message(sub.msg_type, True)) is not None:
-                    data, info = got
+                for data, info in take_all(sub):
                     handler(self._deserialize(data, sub.msg_type), info)
 
     def _on_state(self, msg, info) -> None:
