@@ -206,7 +206,6 @@ class SimulatorShell:
         if self.time_mode == "lockstep":
             self.watchdog = node.create_timer(min(0.01, self.lockstep_retry_s / 2), self._watchdog, clock=steady)
         else:  # a thread of its own, on absolute wall deadlines (not an executor timer: no callback queue ahead)
-            self._next_tick = time.monotonic()
             self._rt_stop = threading.Event()
             self._rt_thread = threading.Thread(target=self._realtime_loop, name="bb2-sim-realtime", daemon=True)
             self._rt_thread.start()
@@ -337,21 +336,22 @@ class SimulatorShell:
         now = time.monotonic()
         if self.wait_for_readers and not unread:  # every topic read: let the readers' side match too
             self._readers_since = self._readers_since or now
-            if now - self._readers_since < self.startup_settle_s:
-                unread = ["(matching)"]
         else:
             self._readers_since = None
+        readers_ok = not self.wait_for_readers or (
+            self._readers_since is not None and now - self._readers_since >= self.startup_settle_s)
         waited = now - self._t_start_wall
-        if (n < self.min_state_subscribers or unread) and waited < self.startup_timeout_s:
+        if (n < self.min_state_subscribers or not readers_ok) and waited < self.startup_timeout_s:
             return
         if n < self.min_state_subscribers:
             self.warn.warn("start", f"starting with {n} of {self.min_state_subscribers} subscribers of "
                                     f"/bb2/state_native after {waited:.1f} s")
-        if unread:
-            self.warn.warn("start_readers", f"starting after {waited:.1f} s with no reader of {', '.join(unread)}")
+        if not readers_ok:
+            self.warn.warn("start_readers", f"starting after {waited:.1f} s: "
+                           + (f"no reader of {', '.join(unread)}" if unread else "the readers still matching"))
         self.start_timer.cancel()
+        self._next_tick = time.monotonic()  # before `started`: the real-time thread reads both unlocked
         self.started = True
-        self._next_tick = time.monotonic()
         self._publish_state()
 
     def _watchdog(self) -> None:
@@ -407,9 +407,8 @@ class SimulatorShell:
         period = 1.0 / self.rate_hz
         late = 0  # consecutive ticks with no time left before the next deadline
         while not self._rt_stop.is_set():
-            if not self.started:
+            if not self.started:  # _start sets the first deadline
                 self._rt_stop.wait(0.01)
-                self._next_tick = time.monotonic()
                 continue
             delay = self._next_tick - time.monotonic()
             if delay > 0:
