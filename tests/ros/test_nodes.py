@@ -6,7 +6,6 @@ import math
 import random
 import signal
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -23,15 +22,13 @@ from bb2_msgs_py.contract import message_class, qos_profile, topic  # noqa: E402
 from bb2_sim.state import VehicleState  # noqa: E402
 from bb2_tools.node_common import remap_rules  # noqa: E402
 
-from rosenv import ros_env  # noqa: E402  (tests/ros/rosenv.py)
+from rosenv import spawn_node  # noqa: E402  (tests/ros/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 MISSION = "path: circle_r400\nstack: rate_2022\nduration_s: 30\n"
 
 
 # ----------------------------------------------------------------------------------------- harness
-
-
 class Probe:
     """A test node on its own context/domain: subscribes, publishes, waits for conditions."""
 
@@ -106,8 +103,7 @@ def graph(tmp_path):
     procs: list[subprocess.Popen] = []
 
     def start(module: str, *ros_args: str) -> subprocess.Popen:
-        p = subprocess.Popen([sys.executable, "-m", module, "--ros-args", *ros_args], cwd=REPO,
-                             env=ros_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        p = spawn_node(module, domain_id, *ros_args)
         procs.append(p)
         return p
 
