@@ -1,7 +1,8 @@
 """X-plane mixer of the BB2 (SPEC 6.1): vertical/horizontal commands -> five plane angles.
 
-``planes_deg = M @ (dV, dH)`` with the matrix of ``data/mixer.yaml`` (rows: 1 lower starboard,
-2 upper starboard, 3 upper port, 4 lower port, 5 sail planes).  dV > 0 commands a bow-up moment and
+``planes_deg = M @ (dV, dH)`` with the vehicle's X-plane matrix (:mod:`bb2_sim.xplane`, rows: 1 lower
+starboard, 2 upper starboard, 3 upper port, 4 lower port, 5 sail planes) and the options of
+``data/mixer.yaml`` (sail sign, saturation).  dV > 0 commands a bow-up moment and
 dH > 0 a bow-to-port moment from every plane (ROM per-plane angle convention, degrees).
 
 The ROM applies the per-plane rate limit and saturation itself; the mixer clips only when
@@ -14,8 +15,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from bb2_control.config import load_data, require
+from bb2_control.config import load_data
 from bb2_control.errors import ControlConfigError, NonFiniteInputError
+from bb2_sim.xplane import mixing_matrix
 
 __all__ = ["PlaneMixer", "to_rom_commands", "from_rom_commands"]
 
@@ -56,9 +58,11 @@ class PlaneMixer:
 
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any] | None = None) -> "PlaneMixer":
-        """From a mapping like ``data/mixer.yaml`` (the default when ``cfg`` is None)."""
+        """From a mapping like ``data/mixer.yaml`` (the default when ``cfg`` is None); the matrix is the
+        vehicle's unless the mapping gives ``matrix_rows_planes_cols_dV_dH``."""
         cfg = load_data("mixer") if cfg is None else cfg
-        return cls(np.asarray(require(cfg, "matrix_rows_planes_cols_dV_dH", "mixer"), float),
+        matrix = cfg.get("matrix_rows_planes_cols_dV_dH")
+        return cls(mixing_matrix() if matrix is None else np.asarray(matrix, float),
                    float(cfg.get("sail_sign", 1)), cfg.get("saturation_deg"))
 
     def reset(self) -> None:

@@ -39,6 +39,7 @@ from bb2_sim.state import VehicleState
 __all__ = [
     "ControlOutput", "SpeedCommand", "RateInnerLoop", "DepthHeadingInnerLoop", "Stack",
     "RatePathFollowingStack", "LosDepthHeadingStack", "available_stacks", "resolve_config", "build_stack",
+    "build_mixer", "build_speed_command", "mixer_from_config",
 ]
 
 _SECTION_FILES = {"guidance": "guidance", "l1": "l1_configs", "autopilot": "autopilots", "mixer": "mixer"}
@@ -145,6 +146,11 @@ class DepthHeadingInnerLoop:
 
 
 # ------------------------------------------------------------------------------------------ stacks
+def mixer_from_config(config: Mapping[str, Any]) -> PlaneMixer:
+    """The X-plane mixer of a resolved stack configuration (``data/mixer.yaml`` + the stack's ``mixer``)."""
+    return PlaneMixer.from_config(deep_merge(load_data("mixer"), config.get("mixer") or {}))
+
+
 class Stack:
     """Base: frame handling, NaN policy and the shared pieces (mixer, speed)."""
 
@@ -166,7 +172,7 @@ class Stack:
         bow = M.T @ np.array([-1.0, 0.0, 0.0])
         self._heading_offset = math.atan2(bow[1], bow[0])   # heading_frame = psi_native + offset
         self.path = path.to_frame(frame) if getattr(path, "frame", frame) != frame else path
-        self.mixer = PlaneMixer.from_config(deep_merge(load_data("mixer"), config.get("mixer") or {}))
+        self.mixer = mixer_from_config(config)
         self.speed = SpeedCommand.from_config(require(config, "speed", f"stack {name}"))
         self._last: ControlOutput | None = None
 
@@ -350,3 +356,17 @@ def build_stack(name_or_config: str | Path | Mapping[str, Any] | None = None, pa
 
         path = load_path(path if path is not None else require(cfg, "path", f"stack {label}"))
     return _TYPES[cfg["type"]](label, cfg, path)
+
+
+def build_mixer(name_or_config: str | Path | Mapping[str, Any] | None = None,
+                overrides: Mapping[str, Any] | None = None) -> PlaneMixer:
+    """Only the X-plane mixer of a stack (what a mixer process needs: no path, no guidance)."""
+    _, cfg = resolve_config(name_or_config, overrides)
+    return mixer_from_config(cfg)
+
+
+def build_speed_command(name_or_config: str | Path | Mapping[str, Any] | None = None,
+                        overrides: Mapping[str, Any] | None = None) -> SpeedCommand:
+    """Only the propeller feed-forward of a stack."""
+    label, cfg = resolve_config(name_or_config, overrides)
+    return SpeedCommand.from_config(require(cfg, "speed", f"stack {label}"))

@@ -41,10 +41,18 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .maneuvers import maneuver_names
-
+    """``bb2-sim`` with the ROM's own sub-command (``maneuver``); the tools layer adds ``mission``
+    (:mod:`bb2_tools.sim_cli`)."""
     p = _Parser(prog="bb2-sim", description="BB2 reduced-order model: maneuvers and missions.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    add_maneuver_parser(sub)
+    return p
+
+
+def add_maneuver_parser(sub) -> argparse.ArgumentParser:
+    """The ``maneuver`` sub-command on a sub-parsers object."""
+    from .maneuvers import maneuver_names
+
     m = sub.add_parser("maneuver", help="run a standard maneuver and print its ITTC figures",
                        description="Run a standard maneuver of the BB2 ROM. Angles in the authors' native "
                                    "convention (psi > 0 bow to port); depths positive down.")
@@ -71,13 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--out", metavar="FILE.csv", help="write the trajectory (reference CSV columns, every 0.1 s)")
     m.add_argument("--plot", metavar="FILE.png", help="draw the maneuver plot")
     m.add_argument("--quiet", action="store_true", help="no progress line")
-
-    ms = sub.add_parser("mission", help="fly a closed-loop mission without ROS")
-    ms.add_argument("file", metavar="FILE.yaml")
-    ms.add_argument("--out", metavar="DIR", help="output directory for the CSV and figures")
-    ms.add_argument("--no-adaptation", action="store_true", help="switch the L1 adaptation off")
-    ms.add_argument("--quiet", action="store_true")
-    return p
+    return m
 
 
 def _fmt(value) -> str:
@@ -158,17 +160,9 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``python -m bb2_sim maneuver ...`` (the ROM alone); ``bb2-sim`` is :func:`bb2_tools.sim_cli.main`."""
     args = build_parser().parse_args(argv)
-    if args.command == "maneuver":
-        return run_maneuver_cli(args)
-    if args.command == "mission":
-        try:
-            from .mission_cli import run_mission_cli
-        except ImportError as e:
-            print(f"bb2-sim: missions are not available: {e}", file=sys.stderr)
-            return 2
-        return run_mission_cli(args)
-    return 2
+    return run_maneuver_cli(args)
 
 
 if __name__ == "__main__":

@@ -3,7 +3,7 @@
 A maneuver is a set of defaults in ``data/maneuvers.yaml`` plus the channel logic below: the vertical
 channel is flown by the authors' depth/pitch PID, a zig-zag, or imposed; the horizontal channel by the
 heading PD, a zig-zag, a constant rudder, or imposed. Commands go through the X-plane mixer
-(:class:`bb2_control.mixer.PlaneMixer`, dV = dv > 0 bow up, dH = dh > 0 bow to port) and then the ROM's
+(:func:`bb2_sim.xplane.plane_angles_deg`, dV = dv > 0 bow up, dH = dh > 0 bow to port) and then the ROM's
 actuators. The run is logged every ``log_every`` steps with the columns of the reference CSVs.
 """
 from __future__ import annotations
@@ -21,6 +21,7 @@ import yaml
 from .autopilot_v12 import V12Autopilot, autopilot_v12_gains
 from .integrator import NonFiniteStateError, Simulator, StepRecord
 from .model import BB2Model
+from .xplane import plane_angles_deg
 
 DATA = Path(__file__).resolve().parent / "data" / "maneuvers.yaml"
 RAD2DEG = 180.0 / math.pi
@@ -160,11 +161,8 @@ class ManeuverCommander:
     """Per major step: state -> five plane commands (deg, authors' plane signs) and the rps command."""
 
     def __init__(self, s: ManeuverSettings):
-        from bb2_control.mixer import PlaneMixer
-
         self.s = s
         self.autopilot = V12Autopilot(z_ref=s.z_ref, psi_ref=math.radians(s.heading_ref_deg))
-        self.mixer = PlaneMixer.from_config()
         self.zigzag = ZigZag(s.amplitude_deg, s.check_deg) if "zigzag" in (s.vertical, s.horizontal) else None
         self.speed_pi = None
         if s.propeller == "speed-pi":
@@ -185,7 +183,7 @@ class ManeuverCommander:
             dh = self.zigzag.step(t, x[5] * RAD2DEG)
         elif s.horizontal == "rudder":
             dh = -s.rudder_deg
-        planes = self.mixer.step(dv, dh)
+        planes = plane_angles_deg(dv, dh)
         if s.vertical == "zigzag":
             planes[4] = dv_pid if s.sail_planes == "pid" else 0.0
         return planes, rps

@@ -20,14 +20,14 @@ What is read (contract topics of :mod:`bb2_msgs_py.contract`, decoded with the c
 * ``/bb2/guidance/path_error`` (the stack's own path errors p_T), ``rate_cmd``, ``vh_cmd``, plane and
   propeller commands and states, ``/bb2/altitude``, ``/bb2/mission/progress``, ``/bb2/status``.
 
-Definitions (those of :mod:`bb2_tools.mission`, so analysis and runner agree by construction):
+Definitions (those of :mod:`bb2_mission`, so analysis and runner agree by construction):
 
 * a *tick* is a recorded state that the ROM stepped from: every state but the last one (the runner
   logs the rows t_0 .. t_{N-1} and ends with the simulator at t_N, which the simulator node also
   publishes);  messages are matched to ticks by their header stamp (integer nanoseconds);
 * ``rms/max_vertical_m``, ``rms/max_horizontal_m``: the stack's own errors (``path_error`` y = left,
-  z = up) over the ticks, RMS and max |e| (:func:`bb2_tools.mission.MissionSummary`);
-* ``*_closest_m``: from the closest path point, :func:`bb2_tools.mission.path_errors_closest`;
+  z = up) over the ticks, RMS and max |e| (:func:`bb2_mission.MissionSummary`);
+* ``*_closest_m``: from the closest path point, :func:`bb2_mission.path_errors_closest`;
 * ground clearance: ``z - z_terrain(x, y)`` of the CG (vertical, native) and of the lowest hull probe when
   the mission's terrain is known (``--mission``, or the bag's ``custom_data`` ``mission_file``, or the
   simulator's ``/bb2/status`` ``mission_file``); else the altimeter's minimum (``/bb2/altitude``);
@@ -347,7 +347,7 @@ def _rms_max(e: np.ndarray) -> tuple[float, float]:
 
 
 def _closest_errors_samples(samples: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`bb2_tools.mission.path_errors_closest` for a sampled path (tangent by finite differences)."""
+    """:func:`bb2_mission.path_errors_closest` for a sampled path (tangent by finite differences)."""
     from scipy.spatial import cKDTree
 
     _, k = cKDTree(samples).query(p)
@@ -362,7 +362,7 @@ def _closest_errors_samples(samples: np.ndarray, p: np.ndarray) -> tuple[np.ndar
 
 def _resolve_mission(run: BagRun, mission: Any, warnings: list[str]) -> Any:
     """The mission object: given, else from the bag's custom_data / the simulator's status (if loadable)."""
-    from bb2_tools.mission import Mission, MissionError, load_mission
+    from bb2_mission import Mission, MissionError, load_mission
 
     if isinstance(mission, Mission):
         return mission
@@ -398,7 +398,7 @@ def _clearances(terrain: Any, probes: Any, x: np.ndarray) -> tuple[float, float,
 def _hull_probes(mission: Any, warnings: list[str]) -> Any:
     try:
         from bb2_sim.model import BB2Model
-        from bb2_tools.mission import HullProbes
+        from bb2_mission import HullProbes
 
         return HullProbes(BB2Model(mission.hull, profile=mission.profile, sea_state=mission.sea_state).surfaces)
     except Exception as exc:  # the CG clearance is still computed
@@ -511,7 +511,7 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
             maneuver_settings: Mapping[str, Any] | None = None) -> Analysis:
     """Compute the figures of a decoded bag (see the module docstring for every definition)."""
     from bb2_sim.parameters import load_parameters
-    from bb2_tools.mission import path_errors_closest
+    from bb2_mission import path_errors_closest
 
     warnings = list(run.warnings)
     recorded_time_s = float(run.t[-1] - run.t[0])

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Mapping, Sequence
 
-from bb2_tools.node_common import take_all
+from bb2_ros.node_common import take_all
 
 POLICIES = ("stop", "restart", "ignore")
 DEFAULT_MAX_RESTARTS = 3
@@ -73,11 +73,11 @@ class GraphNode:
 
 GRAPH_NODES: tuple[GraphNode, ...] = (
     GraphNode("recorder", "bb2_tools", "recorder", "bb2_tools.recorder:main"),
-    GraphNode("planner", "bb2_planner", "planner", "bb2_planner.nodes.planner:main"),
-    GraphNode("path_following", "bb2_control", "path_following", "bb2_control.nodes.path_following:main"),
-    GraphNode("l1_autopilot", "bb2_control", "l1_autopilot", "bb2_control.nodes.l1_autopilot:main"),
-    GraphNode("mixer", "bb2_control", "mixer", "bb2_control.nodes.mixer:main"),
-    GraphNode("simulator", "bb2_sim", "simulator", "bb2_sim.nodes.simulator:main"),
+    GraphNode("planner", "bb2_ros", "planner", "bb2_ros.planner:main"),
+    GraphNode("path_following", "bb2_ros", "path_following", "bb2_ros.path_following:main"),
+    GraphNode("l1_autopilot", "bb2_ros", "l1_autopilot", "bb2_ros.l1_autopilot:main"),
+    GraphNode("mixer", "bb2_ros", "mixer", "bb2_ros.mixer:main"),
+    GraphNode("simulator", "bb2_ros", "simulator", "bb2_ros.simulator:main"),
 )
 """The graph's nodes (:func:`graph_specs` decides the start order)."""
 
@@ -810,10 +810,10 @@ def _load_yaml_mapping(path: Path, what: str) -> dict:
 
 
 def check_mission(path: Path) -> None:
-    """Validate the mission file with ``bb2_tools.mission.load_mission`` (when available)."""
+    """Validate the mission file with ``bb2_mission.load_mission`` (when available)."""
     _load_yaml_mapping(path, "mission file")
     try:
-        from bb2_tools.mission import load_mission
+        from bb2_mission import load_mission
     except ImportError:
         return
     try:

@@ -1,6 +1,6 @@
 """Figures of a closed-loop mission, as in the paper's path-following example (matplotlib, Agg canvas).
 
-Inputs are the mission CSV columns (:data:`bb2_tools.mission.MISSION_COLUMNS`) as arrays, the path in the
+Inputs are the mission CSV columns (:data:`bb2_mission.MISSION_COLUMNS`) as arrays, the path in the
 native frame and, optionally, the terrain.  Positions are plotted in the native earth frame (x, y
 horizontal, z up, metres); depth is -z.  Figures (one PNG each, see :func:`plot_mission`):
 

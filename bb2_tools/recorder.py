@@ -39,7 +39,7 @@ from typing import Any, Sequence
 
 from bb2_msgs_py.contract import ContractError, TopicSpec, message_class, select_topics
 from bb2_tools.bagfile import BagError, BagWriter, qos_entry
-from bb2_tools.node_common import take_all
+from bb2_ros.node_common import take_all
 
 ODOM_TOPIC = "/bb2/odom"
 CLOCK_TOPIC = "/clock"

@@ -292,7 +292,7 @@ class Player:
             return
         from rosgraph_msgs.msg import Clock
 
-        from bb2_tools.node_common import time_msg
+        from bb2_ros.node_common import time_msg
 
         self.clock_pub.publish(Clock(clock=time_msg(t_ns)))
         self._last_clock_ns = t_ns
@@ -373,7 +373,7 @@ def _stamp_ns(msg) -> int:
 
 
 class _CommandFilter:
-    """The simulator node's command validation, for recorded commands (see bb2_sim.nodes.simulator)."""
+    """The simulator node's command validation, for recorded commands (see bb2_ros.simulator)."""
 
     def __init__(self, plane_limit_deg: float, rps_limits: tuple[float, float]):
         self.plane_limit_deg, self.rps_limits = float(plane_limit_deg), rps_limits
@@ -445,7 +445,7 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
     """
     from bb2_msgs_py import conversions as cv
     from bb2_sim.integrator import NonFiniteStateError
-    from bb2_tools.mission import load_mission, mission_components
+    from bb2_mission import load_mission, mission_components
 
     reader = bag if isinstance(bag, BagReader) else BagReader(bag)
     notes: list[str] = []

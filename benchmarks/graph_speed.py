@@ -33,7 +33,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from bb2_tools import launcher as L  # noqa: E402
-from bb2_tools.node_common import take_all  # noqa: E402
+from bb2_ros.node_common import take_all  # noqa: E402
 
 TS = 0.05  # the ROM's major step (s); one simulator step per Ts of sim time
 

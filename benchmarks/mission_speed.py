@@ -16,7 +16,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bb2_tools.mission import MISSIONS_DIR, MissionRunner, load_mission  # noqa: E402
+from bb2_mission import MISSIONS_DIR, MissionRunner, load_mission  # noqa: E402
 
 
 class _Timed:

@@ -5,7 +5,7 @@ This is the template a hardware-in-the-loop user replaces with their own autopil
 the simulator's internals: it subscribes to the vehicle state the simulator publishes and answers with
 plane and propeller commands, stamped with the time of the state they answer.  Inside it runs the BB2
 project's own guidance and control (the mission's stack: 3-D path following -> rate L1 -> rate autopilot ->
-X-plane mixer, built by :func:`bb2_tools.mission.mission_components`), so the example flies the mission.
+X-plane mixer, built by :func:`bb2_mission.mission_components`), so the example flies the mission.
 
 Topics (see examples/README.md for the whole contract):
 
@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     from bb2_control.errors import NonFiniteInputError, PathFollowingError
     from bb2_msgs_py import conversions as cv
     from bb2_msgs_py.contract import message_class, qos_profile
-    from bb2_tools.mission import load_mission, mission_components
+    from bb2_mission import load_mission, mission_components
 
     stack = mission_components(load_mission(args.mission)).stack
 
@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
             except cv.ConversionError as exc:
                 log.warning(f"ignored /bb2/state_native: {exc}", throttle_duration_sec=2.0)
                 return
-            from bb2_tools.node_common import time_msg
+            from bb2_ros.node_common import time_msg
             on_state(s, time_msg(cv.seconds_to_ns(s.t)))
         node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native", on_native,
                                  qos_profile("/bb2/state_native"))

@@ -40,7 +40,7 @@ def summarize(mission_file: Path, odom: list[tuple[float, np.ndarray]], statuses
     ``settle_s``: the path errors are also reported from this sim time on (``*_settled``), after the
     vehicle has converged from the start-up transient.
     """
-    from bb2_tools.mission import load_mission, path_errors_closest
+    from bb2_mission import load_mission, path_errors_closest
 
     mission = load_mission(mission_file)
     path = mission.path if mission.path.frame == "native" else mission.path.to_frame("native")

@@ -3,7 +3,7 @@
 
 Three processes on one ROS domain:
 
-* ``bb2_sim.nodes.simulator`` -- the "vehicle on the bench", ``time_mode: realtime`` at ``--rate-hz``;
+* ``bb2_ros.simulator`` -- the "vehicle on the bench", ``time_mode: realtime`` at ``--rate-hz``;
 * ``examples/hil/external_autopilot.py`` -- the "external" autopilot (our stack, contract topics only);
 * ``examples/hil/monitor.py`` -- watches ``/bb2/odom`` and ``/bb2/status`` and judges the flight.
 
@@ -177,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
         params = simulator_params(summary_file.with_suffix(".params.yaml"), time_mode=args.mode,
                                   rate_hz=args.rate_hz, duration_s=args.duration,
                                   command_timeout_s=args.command_timeout)
-        sim = Proc("simulator", [sys.executable, "-m", "bb2_sim.nodes.simulator", "--ros-args", "--params-file",
+        sim = Proc("simulator", [sys.executable, "-m", "bb2_ros.simulator", "--ros-args", "--params-file",
                                  str(params), "-p", f"mission_file:={mission}"], env, net.bench if net else None)
         procs.append(sim)
         try:

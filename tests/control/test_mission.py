@@ -1,4 +1,4 @@
-"""Closed-loop missions on the ROM (bb2_tools.mission, bb2_sim.mission_cli).
+"""Closed-loop missions on the ROM (bb2_mission, bb2_tools.mission_cli).
 
 Runs use the shipped mission files, cut to their first 60-120 s so the file stays well under two minutes on
 two cores.  Thresholds come from the full runs (README of missions/: e.g. canyon, rate stack, first 120 s:
@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 from bb2_planner.paths import load_path, path_to_dict
-from bb2_tools.mission import (MISSION_COLUMNS, MISSIONS_DIR, MissionError, MissionRunner, load_mission,
+from bb2_mission import (MISSION_COLUMNS, MISSIONS_DIR, MissionError, MissionRunner, load_mission,
                                mission_components, mission_from_dict, read_mission_csv)
 from bb2_sim.model import BB2Model
 
@@ -186,7 +186,7 @@ def test_path_below_the_terrain_is_rejected():
 
 def test_fast_terrain_elevation_equals_the_planner_interpolant():
     from bb2_planner.terrain import synthetic_canyon
-    from bb2_tools.mission import terrain_elevation
+    from bb2_mission import terrain_elevation
 
     T = synthetic_canyon().terrain
     rng = np.random.default_rng(1)
@@ -233,7 +233,7 @@ def test_shipped_missions_load_and_variants_differ_only_as_named():
 
 
 def test_cli_writes_csv_and_figures_and_exit_codes(tmp_path, capsys):
-    from bb2_sim.mission_cli import run_mission_cli
+    from bb2_tools.mission_cli import run_mission_cli
 
     f = tmp_path / "short.yaml"
     f.write_text(f"extends: {MISSIONS_DIR / 'canyon.yaml'}\nname: short\nduration_s: 4.0\n")

@@ -149,4 +149,7 @@ def test_autopilot_gains_carried_from_shared(shared):
                  ("KP_psi", "KP_psi_deg_per_deg"), ("KD_psi_s", "KD_psi_s")]:
         assert pd_own[b] == pd_src[a], b
     mix = json.loads(shared("bb2_control", "params.json").read_text())["mixer"]
-    assert load_data("mixer")["matrix_rows_planes_cols_dV_dH"] == mix["matrix_rows_d1_to_d5_cols_dV_dH"]
+    from bb2_sim.xplane import mixing_matrix  # the vehicle's geometry, which the controllers' mixer uses
+
+    assert mixing_matrix().tolist() == mix["matrix_rows_d1_to_d5_cols_dV_dH"]
+    assert PlaneMixer.from_config().matrix.tolist() == mix["matrix_rows_d1_to_d5_cols_dV_dH"]

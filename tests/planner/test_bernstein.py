@@ -101,7 +101,7 @@ def test_arc_length_matches_dense_polyline_and_bounds():
 def test_cumulative_arc_length_table_interpolates_the_arc_length():
     """The path-following node's progress table: exact at the samples, within 1e-4 m between them on the
     shipped canyon path, and its end is the whole length."""
-    from bb2_tools.mission import load_mission
+    from bb2_mission import load_mission
 
     for P, tol_m in ((random_path(n=6), 1e-6 * 230.5), (load_mission(REPO / "missions" / "canyon.yaml").path, 1e-4)):
         t, s = P.cumulative_arc_length(2001)

@@ -30,7 +30,7 @@ from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import topic  # noqa: E402
 from bb2_tools import analyze as an  # noqa: E402
 from bb2_tools.bagfile import BagWriter, qos_entry  # noqa: E402
-from bb2_tools.mission import MissionRunner, load_mission  # noqa: E402
+from bb2_mission import MissionRunner, load_mission  # noqa: E402
 from bb2_tools.recorder import tf_from_odometry  # noqa: E402
 
 TWO_PI = 2.0 * math.pi
@@ -122,7 +122,7 @@ def write_mission_bag(mission, out: Path, *, custom: dict[str, str] | None = Non
     bag.put("/bb2/status", DiagnosticArray(header=Header(stamp=cv.stamp(final.t)), status=[status]), final.t)
     bag.w.close()
     arr = np.array(rows)
-    from bb2_tools.mission import MISSION_COLUMNS
+    from bb2_mission import MISSION_COLUMNS
 
     traj = {c: arr[:, i] for i, c in enumerate(MISSION_COLUMNS)}
     return out, runner, traj
@@ -150,7 +150,7 @@ def bags(tmp_path_factory):
 
 
 def _summary_of(runner, traj):
-    from bb2_tools.mission import summarize
+    from bb2_mission import summarize
 
     return summarize(runner, traj, runner.mission.path.to_frame("native")
                      if runner.mission.path.frame != "native" else runner.mission.path, 1.0)

@@ -143,7 +143,7 @@ def bench(tmp_path):
     procs: list[subprocess.Popen] = []
 
     def start(**params) -> subprocess.Popen:
-        p = spawn_node("bb2_sim.nodes.simulator", domain_id, "--params-file",
+        p = spawn_node("bb2_ros.simulator", domain_id, "--params-file",
                    _params(tmp_path, mission_file=str(mission), **params))
         procs.append(p)
         return p
@@ -328,7 +328,7 @@ def test_malformed_params_or_mission_exit_nonzero(tmp_path, case):
         args, expect = ["-p", f"mission_file:={tmp_path / 'none.yaml'}"], "cannot read mission file"
     else:
         args, expect = [], "'mission_file' is empty"
-    p = spawn_node("bb2_sim.nodes.simulator", domain_id, *args)
+    p = spawn_node("bb2_ros.simulator", domain_id, *args)
     out, _ = p.communicate(timeout=30)
     assert p.returncode == 2, out
     assert "simulator: error:" in out and expect in out, out

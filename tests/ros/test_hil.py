@@ -92,7 +92,7 @@ def _quiet_listener(attempts: int = 8) -> tuple[int, Listener]:
 
 
 def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
-    from bb2_tools.mission import load_mission, path_errors_closest
+    from bb2_mission import load_mission, path_errors_closest
 
     domain_id, lst = _quiet_listener()
     summary = tmp_path / "hil.json"

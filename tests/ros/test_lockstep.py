@@ -25,8 +25,8 @@ from rosenv import spawn_node  # noqa: E402  (tests/ros/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = REPO / "config" / "bb2_graph.yaml"
-CONTROLLERS = ("bb2_planner.nodes.planner", "bb2_control.nodes.path_following",
-               "bb2_control.nodes.l1_autopilot", "bb2_control.nodes.mixer")
+CONTROLLERS = ("bb2_ros.planner", "bb2_ros.path_following",
+               "bb2_ros.l1_autopilot", "bb2_ros.mixer")
 DURATION_S = 20.0
 
 
@@ -77,7 +77,7 @@ class Listener:
 
 
 def _library_trajectory(mission_file: Path) -> np.ndarray:
-    from bb2_tools.mission import MissionRunner, load_mission
+    from bb2_mission import MissionRunner, load_mission
 
     runner = MissionRunner(load_mission(mission_file))
     xs = [np.r_[runner.sim.t, runner.sim.x]]
@@ -106,7 +106,7 @@ def test_graph_lockstep_equals_library_runner(tmp_path, state_source):
         overrides = tmp_path / "overrides.yaml"  # a second params file beats the node keys of the first
         overrides.write_text(f"simulator:\n  ros__parameters:\n    trajectory_csv: {csv_file}\n"
                              f"    exit_at_end: true\n    min_state_subscribers: {n_readers}\n")
-        sim = spawn_node("bb2_sim.nodes.simulator", domain_id, *common, "--params-file", str(overrides))
+        sim = spawn_node("bb2_ros.simulator", domain_id, *common, "--params-file", str(overrides))
         out, _ = sim.communicate(timeout=50)
         assert sim.returncode == 0, out
         time.sleep(0.6)  # last status round

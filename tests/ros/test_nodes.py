@@ -20,7 +20,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile, topic  # noqa: E402
 from bb2_sim.state import VehicleState  # noqa: E402
-from bb2_tools.node_common import remap_rules  # noqa: E402
+from bb2_ros.node_common import remap_rules  # noqa: E402
 
 from rosenv import spawn_node  # noqa: E402  (tests/ros/rosenv.py)
 
@@ -158,12 +158,12 @@ def test_remap_rules_are_parsed():
 
 # ----------------------------------------------------------------------------------------- nodes
 def test_planner_publishes_exact_path_and_applies_params_file(graph, tmp_path):
-    from bb2_tools.mission import load_mission
+    from bb2_mission import load_mission
 
     probe, start, mission = graph
     path_box = probe.sub("/bb2/path")
     bern_box = probe.sub("/bb2/path/bernstein")
-    proc = start("bb2_planner.nodes.planner", "--params-file", _params(tmp_path, "planner", path_samples=57),
+    proc = start("bb2_ros.planner", "--params-file", _params(tmp_path, "planner", path_samples=57),
                  "-p", f"mission_file:={mission}")
     probe.wait(lambda: path_box and bern_box, 20, "the latched path topics", proc)
     assert len(path_box[0].poses) == 57  # from the params file
@@ -181,7 +181,7 @@ def test_simulator_alone_publishes_its_topics_in_realtime(graph, tmp_path):
     remapped = probe.sub("/test/depth", "sensor_msgs/msg/FluidPressure", qos_profile("sensor"))
     params = _params(tmp_path, "simulator", time_mode="realtime", rate_hz=40, command_timeout_s=0.3,
                      mission_file=str(mission))
-    proc = start("bb2_sim.nodes.simulator", "--params-file", params, "-r", "/bb2/depth:=/test/depth")
+    proc = start("bb2_ros.simulator", "--params-file", params, "-r", "/bb2/depth:=/test/depth")
     probe.wait(lambda: len(boxes["/bb2/imu"]) > 20 and _status(probe, "bb2/simulator"), 20,
                "simulator output", proc)
     st = _status(probe, "bb2/simulator")
@@ -198,12 +198,12 @@ def test_simulator_alone_publishes_its_topics_in_realtime(graph, tmp_path):
 
 
 def test_path_following_answers_a_state_with_the_library_law(graph):
-    from bb2_tools.mission import load_mission, mission_components
+    from bb2_mission import load_mission, mission_components
 
     probe, start, mission = graph
     rate_box, err_box, prog_box = (probe.sub(n) for n in ("/bb2/guidance/rate_cmd", "/bb2/guidance/path_error",
                                                            "/bb2/mission/progress"))
-    proc = start("bb2_control.nodes.path_following", "-p", f"mission_file:={mission}",
+    proc = start("bb2_ros.path_following", "-p", f"mission_file:={mission}",
                  "-p", "path_source:=mission")
     comp = mission_components(load_mission(mission))
     state = VehicleState.from_vector(0.0, comp.x0)
@@ -227,11 +227,11 @@ def test_path_following_answers_a_state_with_the_library_law(graph):
 
 def test_l1_autopilot_pairs_state_and_rate_command_by_stamp(graph):
     from bb2_control.path_following import flow_to_body_rates
-    from bb2_tools.mission import load_mission, mission_components
+    from bb2_mission import load_mission, mission_components
 
     probe, start, mission = graph
     vh_box, prop_box = probe.sub("/bb2/autopilot/vh_cmd"), probe.sub("/bb2/propeller/cmd")
-    proc = start("bb2_control.nodes.l1_autopilot", "-p", f"mission_file:={mission}")
+    proc = start("bb2_ros.l1_autopilot", "-p", f"mission_file:={mission}")
     comp = mission_components(load_mission(mission))
     state = VehicleState.from_vector(0.05, comp.x0)
     probe.wait_subscribed("/bb2/guidance/rate_cmd", proc)
@@ -251,11 +251,11 @@ def test_l1_autopilot_pairs_state_and_rate_command_by_stamp(graph):
 
 
 def test_mixer_maps_vh_to_planes_and_follows_sim_time(graph):
-    from bb2_tools.mission import load_mission, mission_components
+    from bb2_mission import load_mission, mission_components
 
     probe, start, mission = graph
     planes_box, status_box = probe.sub("/bb2/planes/cmd"), probe.sub("/bb2/status")
-    proc = start("bb2_control.nodes.mixer", "-p", f"mission_file:={mission}", "-p", "use_sim_time:=true",
+    proc = start("bb2_ros.mixer", "-p", f"mission_file:={mission}", "-p", "use_sim_time:=true",
                  "-p", "status_period_s:=0.2")
     probe.wait_subscribed("/bb2/autopilot/vh_cmd", proc)
     probe.wait(lambda: (probe.pub("/clock", cv.clock_message(123.25)) or True) and _status(probe, "bb2/mixer")
@@ -271,8 +271,8 @@ def test_mixer_maps_vh_to_planes_and_follows_sim_time(graph):
 
 def test_unknown_remap_is_reported_or_refused(graph):
     probe, start, mission = graph
-    ok = start("bb2_control.nodes.mixer", "-p", f"mission_file:={mission}", "-r", "/bb2/nope:=/bb2/other")
-    strict = start("bb2_control.nodes.mixer", "-p", f"mission_file:={mission}", "-p", "strict_remaps:=true",
+    ok = start("bb2_ros.mixer", "-p", f"mission_file:={mission}", "-r", "/bb2/nope:=/bb2/other")
+    strict = start("bb2_ros.mixer", "-p", f"mission_file:={mission}", "-p", "strict_remaps:=true",
                    "-r", "/bb2/nope:=/bb2/other", "-r", "__node:=mixer_strict")
     out, _ = strict.communicate(timeout=30)
     assert strict.returncode == 2 and "remap /bb2/nope:=/bb2/other matches no topic" in out

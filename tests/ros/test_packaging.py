@@ -19,15 +19,18 @@ from bb2_tools.launcher import GRAPH_NODES
 
 REPO = Path(__file__).resolve().parents[2]
 WS = REPO / "bb2_ros_ws"
-PACKAGES = ("bb2_sim", "bb2_planner", "bb2_control", "bb2_msgs_py", "bb2_tools")
+PACKAGES = ("bb2_sim", "bb2_planner", "bb2_control", "bb2_mission", "bb2_msgs_py", "bb2_ros", "bb2_tools")
+# the layers, bottom up: a package may import (and declares) only packages before it
+LAYERS = PACKAGES
+ROS_FREE = ("bb2_sim", "bb2_planner", "bb2_control", "bb2_mission")
 
 # The executables the graph uses: ros2 package / executable -> Python entry point.
 EXECUTABLES = {
-    ("bb2_sim", "simulator"): "bb2_sim.nodes.simulator:main",
-    ("bb2_planner", "planner"): "bb2_planner.nodes.planner:main",
-    ("bb2_control", "path_following"): "bb2_control.nodes.path_following:main",
-    ("bb2_control", "l1_autopilot"): "bb2_control.nodes.l1_autopilot:main",
-    ("bb2_control", "mixer"): "bb2_control.nodes.mixer:main",
+    ("bb2_ros", "simulator"): "bb2_ros.simulator:main",
+    ("bb2_ros", "planner"): "bb2_ros.planner:main",
+    ("bb2_ros", "path_following"): "bb2_ros.path_following:main",
+    ("bb2_ros", "l1_autopilot"): "bb2_ros.l1_autopilot:main",
+    ("bb2_ros", "mixer"): "bb2_ros.mixer:main",
     ("bb2_tools", "recorder"): "bb2_tools.recorder:main",
 }
 
@@ -59,7 +62,7 @@ def exec_deps(pkg: str) -> set[str]:
     return {e.text.strip() for e in root if e.tag in ("exec_depend", "depend")}
 
 
-def test_workspace_holds_exactly_the_five_packages():
+def test_workspace_holds_exactly_the_seven_packages():
     assert [p.name for p in ws_tool.packages()] == sorted(PACKAGES)
 
 
@@ -77,7 +80,8 @@ def test_package_xml_is_valid_format_3(pkg):
     allowed = {"name", "version", "description", "maintainer", "license", "url", "author", "export"} | DEP_TAGS
     assert {e.tag for e in root} <= allowed, {e.tag for e in root} - allowed
     deps = [e.text.strip() for e in root if e.tag in DEP_TAGS]
-    assert "rclpy" in deps and len(deps) == len(set(deps)), "every dependency once"
+    assert ("rclpy" in deps) == (pkg not in ROS_FREE), "rclpy declared exactly where the code uses it"
+    assert len(deps) == len(set(deps)), "every dependency once"
     # the XML prolog a ROS package.xml carries (the format 3 schema)
     head = (WS / "src" / pkg / "package.xml").read_text().splitlines()[:2]
     assert head[0].startswith("<?xml") and "package_format3.xsd" in head[1]
@@ -140,6 +144,17 @@ def test_bb2_dependencies_are_acyclic_for_colcon():
 
 
 @pytest.mark.parametrize("pkg", PACKAGES)
+def test_every_imported_bb2_package_is_declared_and_below(pkg):
+    """Honest manifests: every bb2_* package the code imports is an exec_depend, and it is a layer below."""
+    text = "\n".join(p.read_text() for p in (REPO / pkg).rglob("*.py") if "__pycache__" not in p.parts)
+    used = set(re.findall(r"^\s*(?:from|import)\s+(bb2_\w+)", text, re.M)) - {pkg}
+    declared = {d for d in exec_deps(pkg) if d.startswith("bb2_")}
+    assert used <= declared, f"imported but not declared: {sorted(used - declared)}"
+    below = set(LAYERS[:LAYERS.index(pkg)])
+    assert declared <= below, f"declared above its layer: {sorted(declared - below)}"
+
+
+@pytest.mark.parametrize("pkg", PACKAGES)
 def test_every_imported_ros_and_python_dependency_is_declared(pkg):
     declared = exec_deps(pkg)
     text = "\n".join(p.read_text() for p in (REPO / pkg).rglob("*.py") if "__pycache__" not in p.parts)
@@ -166,7 +181,7 @@ def test_colcon_install_command_lays_out_lib_and_share(tmp_path):
         assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / pkg).is_file()
         assert (prefix / "share" / pkg / "package.xml").is_file()
     site = next(prefix.glob("lib/python3*/site-packages"))
-    assert (site / "bb2_planner" / "data" / "paths").is_dir() and (site / "bb2_sim" / "nodes" / "simulator.py").is_file()
+    assert (site / "bb2_planner" / "data" / "paths").is_dir() and (site / "bb2_ros" / "simulator.py").is_file()
     for (pkg, exe), ep in EXECUTABLES.items():
         script = prefix / "lib" / pkg / exe
         assert script.is_file() and os.access(script, os.X_OK)
@@ -194,14 +209,14 @@ def test_install_into_prefix_gives_what_ros2_run_looks_for(tmp_path):
     # the ament index finds the packages, and the launcher's `lib` runner uses the installed executables
     probe = ("from ament_index_python.packages import get_package_prefix as g; "
              "from bb2_tools.launcher import GRAPH_NODES, node_command; "
-             "print(g('bb2_control')); print(node_command(GRAPH_NODES[-2], 'lib')[0])")
+             "print(g('bb2_ros')); print(node_command(GRAPH_NODES[-2], 'lib')[0])")
     r = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
-    assert r.stdout.split() == [str(prefix), str(prefix / "lib" / "bb2_control" / "mixer")]
+    assert r.stdout.split() == [str(prefix), str(prefix / "lib" / "bb2_ros" / "mixer")]
     # harmless calls of installed executables, run as `ros2 run` would (exec the file)
     r = subprocess.run([str(prefix / "lib" / "bb2_tools" / "recorder"), "--help"], env=env,
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and "usage: bb2-record" in r.stdout, r.stderr
-    r = subprocess.run([str(prefix / "lib" / "bb2_control" / "mixer"), "--ros-args", "--params-file",
+    r = subprocess.run([str(prefix / "lib" / "bb2_ros" / "mixer"), "--ros-args", "--params-file",
                         str(tmp_path / "missing.yaml")], env=env, capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr  # the node's own bad-input exit

@@ -46,7 +46,7 @@ def _write_bag(bag_dir: Path, mission_file: Path, *, tamper_step: int | None = N
     from rclpy.serialization import serialize_message
 
     from bb2_sim.state import VehicleState
-    from bb2_tools.mission import load_mission, mission_components
+    from bb2_mission import load_mission, mission_components
 
     comp = mission_components(load_mission(mission_file))
     sim, stack = comp.simulator, comp.stack

@@ -35,7 +35,7 @@ from hypothesis import strategies as st  # noqa: E402
 
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import PLANE_JOINTS, message_class, qos_profile  # noqa: E402
-from bb2_tools.node_common import time_msg  # noqa: E402
+from bb2_ros.node_common import time_msg  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 RATE_HZ = 50.0
@@ -192,7 +192,7 @@ class SimProcess:
                 "status_period_s": 0.1, "warn_throttle_s": THROTTLE_S}
         if os.environ.get("BB2_PROPERTY_TRAJECTORY"):  # debugging: the simulator's own trajectory CSV
             args["trajectory_csv"] = os.environ["BB2_PROPERTY_TRAJECTORY"]
-        cmd = [sys.executable, "-m", "bb2_sim.nodes.simulator", "--ros-args"]
+        cmd = [sys.executable, "-m", "bb2_ros.simulator", "--ros-args"]
         for k, v in args.items():
             cmd += ["-p", f"{k}:={v}"]
         self.p = subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,

@@ -22,13 +22,10 @@ setup(
     zip_safe=False,
     maintainer='BB2 Sim developers',
     maintainer_email='bb2-sim@todo.todo',
-    description='BB2 guidance and control: 3-D path following, L1 adaptive augmentation, autopilots, X-plane mixer, and their nodes.',
+    description='BB2 guidance and control: 3-D path following on SO(3), LOS, L1 adaptive augmentation, autopilots, X-plane mixer, named stacks. No ROS.',
     license='TODO',
     entry_points={
         'console_scripts': [
-            'path_following = bb2_control.nodes.path_following:main',
-            'l1_autopilot = bb2_control.nodes.l1_autopilot:main',
-            'mixer = bb2_control.nodes.mixer:main',
         ],
     },
 )

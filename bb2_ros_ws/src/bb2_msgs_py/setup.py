@@ -22,9 +22,10 @@ setup(
     zip_safe=False,
     maintainer='BB2 Sim developers',
     maintainer_email='bb2-sim@todo.todo',
-    description='The BB2 topic contract (names, standard message types, QoS, frames, units) and numpy and message conversions.',
+    description='BB2 message contract: topic names, standard message types, QoS, frames and numpy to and from message conversions.',
     license='TODO',
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+        ],
     },
 )

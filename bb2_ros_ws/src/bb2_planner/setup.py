@@ -22,11 +22,10 @@ setup(
     zip_safe=False,
     maintainer='BB2 Sim developers',
     maintainer_email='bb2-sim@todo.todo',
-    description='Bernstein-polynomial path planning for the BB2 (paths, terrain, constrained optimal trajectories) and the planner node.',
+    description='Bernstein-polynomial path planning for the BB2 (paths, terrain, constrained optimal trajectories). No ROS.',
     license='TODO',
     entry_points={
         'console_scripts': [
-            'planner = bb2_planner.nodes.planner:main',
         ],
     },
 )

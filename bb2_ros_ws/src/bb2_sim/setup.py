@@ -22,11 +22,10 @@ setup(
     zip_safe=False,
     maintainer='BB2 Sim developers',
     maintainer_email='bb2-sim@todo.todo',
-    description='BB2 submarine reduced-order model (Martin et al. 2022) and the simulator node (fixed-rate ROM, /clock, lockstep or real time).',
+    description='BB2 submarine reduced-order model (Martin et al. 2022): 6-DoF rigid body, hull, planes, propeller, hydrostatics and wave pressure over the triangulated hull, ode3 stepping, maneuvers. No ROS.',
     license='TODO',
     entry_points={
         'console_scripts': [
-            'simulator = bb2_sim.nodes.simulator:main',
         ],
     },
 )

@@ -25,7 +25,7 @@ setup(
     zip_safe=False,
     maintainer='BB2 Sim developers',
     maintainer_email='bb2-sim@todo.todo',
-    description='BB2 tools: rosbag2-compatible MCAP recorder, missions, the bb2-launch launcher, analysis and replay.',
+    description='BB2 tools: rosbag2-compatible MCAP recorder, the bb2-launch launcher and its supervisor and monitor, analysis, replay, the bb2-sim CLI; installs the shipped missions.',
     license='TODO',
     entry_points={
         'console_scripts': [

@@ -10,7 +10,7 @@ what every shell needs and nothing numerical:
 * :func:`check_remaps` -- a ``-r from:=to`` rule that names no topic of the node is reported (or is
   an error with ``strict_remaps: true``), so a typo in a remap never passes silently.
 * :func:`mission_pieces` -- the mission's model/simulator/stack, built by the mission runner's own
-  factory (:func:`bb2_tools.mission.mission_components`), so the graph equals the library runner.
+  factory (:func:`bb2_mission.mission_components`), so the graph equals the library runner.
 * :class:`Throttle` -- wall-clock throttling of repeated warnings with a count of the suppressed ones.
 
 Topic remapping is the standard ROS 2 one: ``--ros-args -r /bb2/odom:=/other/odom`` (optionally
@@ -124,7 +124,7 @@ def check_remaps(node, argv: Sequence[str], topics: Iterable[str], *, strict: bo
 # ----------------------------------------------------------------------------------------- mission
 def mission_pieces(mission_file: str):
     """``(mission, components)``: the mission file loaded and built by the mission runner's own factory
-    (:func:`bb2_tools.mission.mission_components`: model, simulator at x0, stack), so the graph starts
+    (:func:`bb2_mission.mission_components`: model, simulator at x0, stack), so the graph starts
     from the very objects the library runner starts from."""
     mission = mission_only(mission_file)
     return mission, components_for(mission)
@@ -303,7 +303,7 @@ def mission_only(mission_file: str):
     if not mission_file:
         raise NodeConfigError("parameter 'mission_file' is empty: give the mission YAML "
                               "(the same file as `bb2-sim mission`), e.g. -p mission_file:=missions/canyon.yaml")
-    from bb2_tools.mission import load_mission
+    from bb2_mission import load_mission
 
     try:
         return load_mission(mission_file)
@@ -312,8 +312,8 @@ def mission_only(mission_file: str):
 
 
 def components_for(mission):
-    """:func:`bb2_tools.mission.mission_components` of a loaded mission, with clear errors."""
-    from bb2_tools.mission import mission_components
+    """:func:`bb2_mission.mission_components` of a loaded mission, with clear errors."""
+    from bb2_mission import mission_components
 
     try:
         return mission_components(mission)

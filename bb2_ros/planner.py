@@ -12,7 +12,7 @@ from __future__ import annotations
 import sys
 from typing import Sequence
 
-from bb2_tools.node_common import (NodeConfigError, NodeStatus, check_remaps, declare, mission_only,
+from bb2_ros.node_common import (NodeConfigError, NodeStatus, check_remaps, declare, mission_only,
                                    require_positive, run_node)
 
 TOPICS = ("/bb2/path", "/bb2/path/bernstein", "/bb2/status")

@@ -14,9 +14,19 @@ import sys
 from pathlib import Path
 
 
+def add_mission_parser(sub) -> argparse.ArgumentParser:
+    """The ``mission`` sub-command of ``bb2-sim`` on a sub-parsers object."""
+    ms = sub.add_parser("mission", help="fly a closed-loop mission without ROS")
+    ms.add_argument("file", metavar="FILE.yaml")
+    ms.add_argument("--out", metavar="DIR", help="output directory for the CSV and figures")
+    ms.add_argument("--no-adaptation", action="store_true", help="switch the L1 adaptation off")
+    ms.add_argument("--quiet", action="store_true")
+    return ms
+
+
 def run_mission_cli(a: argparse.Namespace) -> int:
     from bb2_sim.maneuvers import CsvWriter
-    from bb2_tools.mission import MISSION_COLUMNS, MissionError, MissionRunner, load_mission
+    from bb2_mission import MISSION_COLUMNS, MissionError, MissionRunner, load_mission
 
     try:
         m = load_mission(a.file)

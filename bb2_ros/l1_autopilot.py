@@ -23,7 +23,7 @@ from bb2_control.errors import NonFiniteInputError
 from bb2_control.path_following import flow_to_body_rates
 from bb2_msgs_py import conversions as cv
 
-from bb2_tools.node_common import (NodeStatus, StampedCache, check_remaps, declare, mission_pieces,
+from bb2_ros.node_common import (NodeStatus, StampedCache, check_remaps, declare, mission_pieces,
                                    require_choice, require_positive, require_rate_stack, run_node,
                                    subscribe_state, time_msg)
 

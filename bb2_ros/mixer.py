@@ -15,7 +15,7 @@ from typing import Sequence
 from bb2_control.errors import NonFiniteInputError
 from bb2_msgs_py import conversions as cv
 
-from bb2_tools.node_common import (NodeStatus, StampedCache, check_remaps, declare, mission_pieces,
+from bb2_ros.node_common import (NodeStatus, StampedCache, check_remaps, declare, mission_pieces,
                                    require_positive, run_node)
 
 TOPICS = ("/bb2/autopilot/vh_cmd", "/bb2/planes/cmd", "/bb2/status")

@@ -73,7 +73,7 @@ from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT
 from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.state import VehicleState
 
-from bb2_tools.node_common import (NodeConfigError, Throttle, check_remaps, declare, mission_pieces,
+from bb2_ros.node_common import (NodeConfigError, Throttle, check_remaps, declare, mission_pieces,
                                    require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",

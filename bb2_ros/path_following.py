@@ -26,7 +26,7 @@ from std_msgs.msg import Float64
 from bb2_control.errors import NonFiniteInputError, PathFollowingError
 from bb2_msgs_py import conversions as cv
 
-from bb2_tools.node_common import (NodeStatus, StampedCache, check_remaps, components_for, declare,
+from bb2_ros.node_common import (NodeStatus, StampedCache, check_remaps, components_for, declare,
                                    mission_only, require_choice, require_positive, require_rate_stack,
                                    run_node, subscribe_state, time_msg)
 

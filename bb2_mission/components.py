@@ -1,0 +1,158 @@
+"""The one factory of a mission's pieces, shared by the library runner and the ROS nodes (no ROS).
+
+:func:`mission_components` builds everything an in-process run needs (the ROM, the simulator at its initial
+state, the control stack and the hull probes for the terrain checks).  A ROS node builds only its own piece
+with the builders below, from the very same code, so both worlds start from identical objects:
+
+=================  =====================================  =========================================
+piece              builder                                who uses it
+=================  =====================================  =========================================
+ROM + simulator    :func:`build_model`, :func:`build_simulator`   simulator node, runner, replay
+control stack      :func:`build_mission_stack`             path_following and l1_autopilot nodes
+X-plane mixer      :func:`build_mixer`                     mixer node
+initial state      :func:`initial_state`                   simulator node, runner
+=================  =====================================  =========================================
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bb2_planner.terrain import Terrain
+
+from bb2_mission.schema import RPS_PATH_MEAN_SPEED, Mission, _resolve_stack, initial_state
+
+__all__ = ["MissionComponents", "HullProbes", "mission_components", "stack_overrides", "initial_state",
+           "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer"]
+
+
+def stack_overrides(m: Mission) -> dict[str, Any]:
+    """Overrides the mission applies to its stack: ``adaptation`` and, when ``rps`` is set, the speed.
+
+    ``rps`` becomes the stack's feed-forward speed reference (v_ref = rps * advance) so that the stack's
+    own output carries the propeller command, in-process and in ROS alike.  Build the stack with
+    ``build_stack(m.stack, m.path, stack_overrides(m))``.
+    """
+    over: dict[str, Any] = {"adaptation": bool(m.adaptation)}
+    if m.rps is not None:
+        _, cfg = _resolve_stack(m.stack, m.adaptation, None)
+        advance = float(cfg["speed"].get("advance_m_per_rev", 4.0))
+        v_ref = m.path.arc_length() / m.path.span if m.rps == RPS_PATH_MEAN_SPEED else float(m.rps) * advance
+        over["speed"] = {"v_ref_mps": float(v_ref)}
+    return over
+
+
+def terrain_elevation(terrain: Terrain, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear elevation of ``terrain`` at native (x, y), NaN off the grid.
+
+    The same interpolant as :meth:`Terrain.elevation` (linear on the regular grid), without its
+    per-call overhead and without raising off the grid: the per-tick clearance check uses it.
+    """
+    gx, gy, gz = terrain.x, terrain.y, terrain.z
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    inside = (x >= gx[0]) & (x <= gx[-1]) & (y >= gy[0]) & (y <= gy[-1])
+    i = np.clip(np.searchsorted(gx, x, side="right") - 1, 0, gx.size - 2)
+    j = np.clip(np.searchsorted(gy, y, side="right") - 1, 0, gy.size - 2)
+    fx = (x - gx[i]) / (gx[i + 1] - gx[i])
+    fy = (y - gy[j]) / (gy[j + 1] - gy[j])
+    z = (gz[i, j] * (1 - fx) * (1 - fy) + gz[i + 1, j] * fx * (1 - fy) + gz[i, j + 1] * (1 - fx) * fy
+         + gz[i + 1, j + 1] * fx * fy)
+    return np.where(inside, z, np.nan)
+
+
+class HullProbes:
+    """Probe points of the hull (native body frame) for vertical clearance and broaching checks.
+
+    The vertices of the convex hull of all surfaces (hull, sail, planes undeflected), thinned to one per
+    ``cell_m`` cube; the sail top is the highest vertex.
+    """
+
+    def __init__(self, surfaces: Any, cell_m: float = 2.0) -> None:
+        from scipy.spatial import ConvexHull
+
+        V = np.concatenate([np.asarray(surfaces.fixed_vertices).reshape(-1, 3)]
+                           + [np.asarray(v).reshape(-1, 3) for v in surfaces.plane_vertices])
+        P = V[ConvexHull(V).vertices]
+        _, keep = np.unique(np.floor(P / cell_m), axis=0, return_index=True)
+        self.points_body = P[np.sort(keep)]                 #: (n, 3) m, native body
+        self.sail_top_m = float(V[:, 2].max())              #: highest point above the CG, m
+        self.keel_m = float(-V[:, 2].min())                 #: lowest point below the CG, m
+
+    def world(self, x12: np.ndarray) -> np.ndarray:
+        """Probe positions (n, 3) in the native earth frame for state x12."""
+        from bb2_sim.frames import rotation_native
+
+        R = rotation_native(x12[3], x12[4], x12[5])
+        return x12[0:3] + self.points_body @ R.T
+
+
+@dataclass
+class MissionComponents:
+    """Everything a run is built from (shared by :class:`MissionRunner` and the ROS nodes).
+
+    ``model``/``simulator`` (at ``x0``, t = 0) for the simulator node; ``stack`` (fresh, built by
+    ``build_stack(m.stack, m.path, stack_overrides(m))``; ``stack.name``, ``stack.config``) for the control nodes -- its pieces (``stack.guidance``, ``stack.inner``,
+    ``stack.mixer``, ``stack.speed``) can run in separate processes; ``path`` in the stack's frame.
+    """
+
+    mission: Mission
+    model: Any
+    simulator: Any
+    stack: Any
+    x0: np.ndarray
+    probes: HullProbes
+    max_cg_z_m: float
+
+
+def mission_components(m: Mission, model: Any = None) -> MissionComponents:
+    """Build the ROM (unless given), the simulator at x0, the stack and the hull probes for mission ``m``."""
+    from bb2_sim.integrator import Simulator
+
+    if model is None:
+        model = build_model(m)
+    stack = build_mission_stack(m)
+    x0 = initial_state(m)
+    probes = HullProbes(model.surfaces)
+    max_z = m.limits.max_cg_z_m if m.limits.max_cg_z_m is not None else -probes.sail_top_m
+    return MissionComponents(m, model, Simulator(model, x0), stack, x0, probes, float(max_z))
+
+
+
+
+# ------------------------------------------------------------------------------------------ one piece each
+def build_model(m: Mission) -> Any:
+    """The ROM of mission ``m`` (hull, profile, sea)."""
+    from bb2_sim.model import BB2Model
+
+    return BB2Model(m.hull, profile=m.profile, sea_state=m.sea_state)
+
+
+def build_simulator(m: Mission, model: Any = None) -> Any:
+    """The ROM's fixed-step simulator at the mission's initial state (t = 0)."""
+    from bb2_sim.integrator import Simulator
+
+    return Simulator(build_model(m) if model is None else model, initial_state(m))
+
+
+def build_mission_stack(m: Mission) -> Any:
+    """The mission's control stack (fresh), as the runner builds it."""
+    from bb2_control.stacks import build_stack
+
+    return build_stack(m.stack, m.path, stack_overrides(m))
+
+
+def build_mixer(m: Mission) -> Any:
+    """Only the X-plane mixer of the mission's stack (the mixer node's one piece)."""
+    from bb2_control.stacks import build_mixer as stack_mixer
+
+    return stack_mixer(m.stack, stack_overrides(m))
+
+
+def nominal_rps(m: Mission) -> float:
+    """The stack's feed-forward propeller command for mission ``m`` (rev/s): what the simulator holds
+    before any propeller command has arrived."""
+    from bb2_control.stacks import build_speed_command
+
+    return float(build_speed_command(m.stack, stack_overrides(m)).step())

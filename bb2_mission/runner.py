@@ -1,0 +1,187 @@
+"""The closed-loop mission runner without ROS: ROM + Bernstein path + guidance/autopilot stack + terrain checks.
+
+The tick (``Ts = 0.05 s``, the ROM's major step), which a ROS graph in lockstep reproduces exactly::
+
+    state_n = VehicleState.from_vector(sim.t, sim.x)        # simulator -> odometry (native frames)
+    out_n   = stack.step(state_n)                            # guidance -> L1 + autopilot -> mixer
+    rec_n   = sim.step(out_n.planes_deg, out_n.rps)          # ROM ode3 step, commands held over [t_n, t_n+1)
+
+The terrain checks (grounding, broaching) look at ``state_n`` before the ROM step; they never feed back
+into the loop, so a ROS graph that omits them still produces the same trajectory.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from bb2_planner.bernstein import BernsteinPath
+
+from bb2_mission.components import mission_components, terrain_elevation
+from bb2_mission.records import MissionRow, rows_to_columns
+from bb2_mission.schema import Mission, load_mission
+from bb2_mission.summary import MissionEvent, MissionSummary, summarize
+
+__all__ = ["MissionStep", "MissionResult", "MissionRunner", "run_mission"]
+
+RAD2DEG = 180.0 / math.pi
+NAN5 = (math.nan,) * 5
+
+
+@dataclass
+class MissionStep:
+    """One tick: the state at t_n, the stack output from it, the ROM's step record, the clearances."""
+
+    state: Any                    #: VehicleState at t_n
+    output: Any                   #: ControlOutput
+    record: Any                   #: StepRecord (None if the tick stopped before the ROM step)
+    terrain_z_m: float
+    clearance_m: float
+    hull_clearance_m: float
+    row: MissionRow | None
+    event: MissionEvent | None = None
+
+
+
+@dataclass
+class MissionResult:
+    mission: Mission
+    traj: dict[str, np.ndarray]     #: MISSION_COLUMNS -> arrays (one entry per tick)
+    summary: MissionSummary
+    path_native: BernsteinPath
+
+    @property
+    def failed(self) -> bool:
+        return self.summary.failed
+
+
+class MissionRunner:
+    """Flies a mission tick by tick (see the module docstring for the tick).
+
+    ``step()`` runs one tick; ``run()`` runs to the end (stack finished, duration, or a failure) and
+    returns a :class:`MissionResult`.
+    """
+
+    def __init__(self, mission: Mission, model: Any = None) -> None:
+        self.mission = mission
+        self.c = mission_components(mission, model)
+        self.sim, self.stack = self.c.simulator, self.c.stack
+        self.terrain = mission.terrain
+        self.n_steps = int(math.floor(mission.duration / self.sim.h + 1e-9))
+        self.done = False
+        self.event: MissionEvent | None = None
+        self.end_reason = ""
+        self._last_out: Any = None
+
+    # -- terrain
+    def _clearances(self, x: np.ndarray) -> tuple[float, float, float]:
+        if self.terrain is None:
+            return math.nan, math.nan, math.nan
+        pts = np.vstack([x[0:3], self.c.probes.world(x)])
+        zt = terrain_elevation(self.terrain, pts[:, 0], pts[:, 1])
+        cl = pts[:, 2] - zt
+        hull = float(np.nanmin(cl[1:])) if np.isfinite(cl[1:]).any() else math.nan
+        return float(zt[0]), float(cl[0]), hull
+
+    def step(self) -> MissionStep:
+        """One tick at t_n: stack output from the state, terrain checks, then the ROM step to t_n+1."""
+        from bb2_control.errors import NonFiniteInputError, PathFollowingError
+        from bb2_sim.integrator import NonFiniteStateError
+        from bb2_sim.state import VehicleState
+
+        if self.done:
+            raise RuntimeError("mission already ended")
+        sim = self.sim
+        x = sim.x.copy()
+        state = VehicleState.from_vector(sim.t, x)
+        tz, cl, hull = self._clearances(x)
+        try:
+            out = self.stack.step(state)
+        except (PathFollowingError, NonFiniteInputError) as e:
+            self._end("control_error", MissionEvent("control_error", sim.t, x[0:3].copy(), str(e)))
+            row = self._row(state, x, self._last_out, None, tz, cl, hull) if self._last_out else None
+            return MissionStep(state, None, None, tz, cl, hull, row, self.event)
+        self._last_out = out
+        event = None
+        lim = self.mission.limits
+        if math.isfinite(hull) and hull < lim.min_hull_clearance_m:
+            event = MissionEvent("grounded", sim.t, x[0:3].copy(),
+                                 f"lowest hull point {hull:.2f} m above the terrain (limit "
+                                 f"{lim.min_hull_clearance_m} m); CG clearance {cl:.2f} m")
+        elif x[2] > self.c.max_cg_z_m:
+            event = MissionEvent("broached", sim.t, x[0:3].copy(),
+                                 f"CG z = {x[2]:.2f} m above the limit {self.c.max_cg_z_m:.2f} m"
+                                 + (" (sail top at the calm surface)" if lim.max_cg_z_m is None else ""))
+        rec = None
+        if event is None:
+            try:
+                rec = sim.step(out.planes_deg, out.rps)
+            except NonFiniteStateError as e:
+                event = MissionEvent("diverged", sim.t, x[0:3].copy(), str(e))
+        row = self._row(state, x, out, rec, tz, cl, hull)
+        if event is not None:
+            self._end(event.kind, event)
+        elif out.finished:
+            self._end("finished", None)
+        elif sim.n >= self.n_steps:
+            self._end("duration", None)
+        return MissionStep(state, out, rec, tz, cl, hull, row, event)
+
+    def _end(self, reason: str, event: MissionEvent | None) -> None:
+        self.done, self.end_reason, self.event = True, reason, event
+    def _row(self, state: Any, x: np.ndarray, out: Any, rec: Any, tz: float, cl: float, hull: float) -> MissionRow:
+        from bb2_sim.frames import rotation_native
+
+        v_e = rotation_native(x[3], x[4], x[5]) @ x[6:9]
+        fpa = math.degrees(math.atan2(v_e[2], math.hypot(v_e[0], v_e[1])))
+        u = list(out.u_ad.values()) if out.u_ad else []
+        u = (u + [math.nan, math.nan])[:2]
+        cmd = out.planes_deg
+        act = rec.act.planes_deg if rec is not None else NAN5
+        xd, yd, zd = out.p_d_native
+        return MissionRow(
+            t_s=state.t, x_m=x[0], y_m=x[1], z_m=x[2],
+            phi_deg=x[3] * RAD2DEG, theta_deg=x[4] * RAD2DEG, psi_deg=x[5] * RAD2DEG,
+            u_m_s=x[6], v_m_s=x[7], w_m_s=x[8],
+            p_deg_s=x[9] * RAD2DEG, q_deg_s=x[10] * RAD2DEG, r_deg_s=x[11] * RAD2DEG,
+            U_m_s=math.sqrt(x[6] ** 2 + x[7] ** 2 + x[8] ** 2), flight_path_angle_deg=fpa,
+            q_c_rad_s=out.q_c, r_c_rad_s=out.r_c, q_up_ref_rad_s=out.q_up_ref, r_left_ref_rad_s=out.r_left_ref,
+            z_ref_m=out.z_ref, psi_ref_deg=out.psi_ref * RAD2DEG, u_ad_1=u[0], u_ad_2=u[1],
+            dV_deg=out.dV_deg, dH_deg=out.dH_deg,
+            cmd_d1_deg=cmd[0], cmd_d2_deg=cmd[1], cmd_d3_deg=cmd[2], cmd_d4_deg=cmd[3], cmd_d5_deg=cmd[4],
+            d1_deg=act[0], d2_deg=act[1], d3_deg=act[2], d4_deg=act[3], d5_deg=act[4],
+            rps_cmd=out.rps, n_rps=rec.act.rps if rec is not None else math.nan,
+            virtual_time_s=out.gamma, virtual_time_rate=out.gamma_dot, xd_m=xd, yd_m=yd, zd_m=zd,
+            e_horizontal_m=out.e_horizontal_m, e_vertical_m=out.e_vertical_m,
+            terrain_z_m=tz, clearance_m=cl, hull_clearance_m=hull)
+
+    def run(self, progress: Callable[[float], None] | None = None,
+            on_row: Callable[[MissionRow], None] | None = None) -> MissionResult:
+        """Fly to the end; ``on_row`` gets every CSV row as it is made, ``progress`` the time every 10 s."""
+        rows: list[MissionRow] = []
+        t0 = time.perf_counter()
+        while not self.done:
+            st = self.step()
+            if st.row is not None:
+                rows.append(st.row)
+                if on_row:
+                    on_row(st.row)
+            if progress and self.sim.n % 200 == 0:
+                progress(self.sim.t)
+        wall = time.perf_counter() - t0
+        traj = rows_to_columns(rows)
+        path_native = self.mission.path.to_frame("native") if self.mission.path.frame != "native" \
+            else self.mission.path
+        return MissionResult(self.mission, traj, summarize(self, traj, path_native, wall), path_native)
+
+
+def run_mission(m: Mission | str | Path, *, model: Any = None, progress: Callable[[float], None] | None = None,
+                on_row: Callable[[MissionRow], None] | None = None) -> MissionResult:
+    """Load (if needed) and fly a mission."""
+    if not isinstance(m, Mission):
+        m = load_mission(m)
+    return MissionRunner(m, model).run(progress=progress, on_row=on_row)

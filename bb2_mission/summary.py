@@ -1,0 +1,143 @@
+"""What a mission run comes to: its ending event and its figures (path errors, clearance; no ROS).
+
+The figures are the paper's: RMS and maximum of the stack's own path errors (its p_T components) and,
+the same for every stack, of the errors from the closest point of the path; the minimum CG and hull
+clearance over the terrain.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from bb2_planner.bernstein import BernsteinPath
+
+__all__ = ["MissionEvent", "MissionSummary", "path_errors_closest", "summarize", "rms_max"]
+
+
+@dataclass(frozen=True)
+class MissionEvent:
+    """Why a mission failed: ``grounded`` / ``broached`` / ``diverged`` / ``control_error``."""
+
+    kind: str
+    t: float                       #: s
+    p_native: np.ndarray           #: CG position (x, y, z) native, m
+    detail: str
+
+    def __str__(self) -> str:
+        x, y, z = (float(v) for v in self.p_native)
+        return f"{self.kind} at t = {self.t:.2f} s, CG at x = {x:.1f}, y = {y:.1f}, z = {z:.1f} m (native): {self.detail}"
+
+
+
+@dataclass(frozen=True)
+class MissionSummary:
+    """Figures of a run.  Path errors are the stack's own (its p_T components); ``*_closest`` are
+    measured from the closest point of the path, the same for every stack."""
+
+    mission: str
+    stack: str
+    adaptation: bool
+    mission_time_s: float
+    completed: bool
+    end_reason: str                 #: finished | duration | grounded | broached | diverged | control_error
+    rms_vertical_m: float
+    max_vertical_m: float
+    rms_horizontal_m: float
+    max_horizontal_m: float
+    rms_vertical_closest_m: float
+    max_vertical_closest_m: float
+    rms_horizontal_closest_m: float
+    max_horizontal_closest_m: float
+    min_clearance_m: float          #: CG vertical clearance (NaN without terrain)
+    min_clearance_t_s: float
+    min_hull_clearance_m: float
+    virtual_time_end_s: float
+    wall_time_s: float
+    event: MissionEvent | None = None
+
+    @property
+    def failed(self) -> bool:
+        return self.event is not None
+
+    def lines(self) -> list[str]:
+        """Human-readable report."""
+        out = [f"mission {self.mission}: stack {self.stack}, adaptation {'on' if self.adaptation else 'off'}",
+               f"  mission time {self.mission_time_s:.2f} s ({self.end_reason}; virtual time "
+               f"{self.virtual_time_end_s:.1f} s){'' if self.completed else ' -- NOT completed'}",
+               f"  vertical path error    RMS {self.rms_vertical_m:7.3f} m   max {self.max_vertical_m:7.3f} m"
+               f"   (closest point: RMS {self.rms_vertical_closest_m:.3f}, max {self.max_vertical_closest_m:.3f})",
+               f"  horizontal path error  RMS {self.rms_horizontal_m:7.3f} m   max {self.max_horizontal_m:7.3f} m"
+               f"   (closest point: RMS {self.rms_horizontal_closest_m:.3f}, max {self.max_horizontal_closest_m:.3f})"]
+        if math.isfinite(self.min_clearance_m):
+            out.append(f"  minimum ground clearance {self.min_clearance_m:.2f} m (CG, at t = {self.min_clearance_t_s:.1f} s);"
+                       f" lowest hull point {self.min_hull_clearance_m:.2f} m")
+        else:
+            out.append("  minimum ground clearance: n/a (no terrain)")
+        rt = self.mission_time_s / self.wall_time_s if self.wall_time_s > 0 else float("inf")
+        out.append(f"  wall time {self.wall_time_s:.2f} s ({rt:.0f}x real time)")
+        if self.event is not None:
+            out.append(f"  FAILED: {self.event}")
+        return out
+
+
+
+def rms_max(e: np.ndarray) -> tuple[float, float]:
+    e = e[np.isfinite(e)]
+    if e.size == 0:
+        return math.nan, math.nan
+    return float(np.sqrt(np.mean(e ** 2))), float(np.max(np.abs(e)))
+
+
+def path_errors_closest(path_native: BernsteinPath, p_native: np.ndarray, samples: int = 20001
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """(horizontal, vertical) errors of points from the closest point of the path (dense samples, KD-tree).
+
+    Components in the path's horizontal-normal frame there: horizontal > 0 left of the path, vertical > 0
+    above it (the same frame as the rate stack's p_T).
+    """
+    from scipy.spatial import cKDTree
+
+    p_native = np.asarray(p_native, float).reshape(-1, 3)
+    if len(p_native) == 0:
+        return np.zeros(0), np.zeros(0)
+    t, pts = path_native.sample(samples)
+    _, k = cKDTree(pts).query(p_native)
+    d = np.asarray(path_native.velocity(t[k]), float).reshape(-1, 3)
+    t1 = d / np.linalg.norm(d, axis=1, keepdims=True)
+    h = np.c_[-d[:, 1], d[:, 0], np.zeros(len(d))]
+    t2 = h / np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
+    t3 = np.cross(t1, t2)
+    e = p_native - pts[k]
+    return np.einsum("ij,ij->i", e, t2), np.einsum("ij,ij->i", e, t3)
+
+
+def summarize(runner: Any, traj: Mapping[str, np.ndarray], path_native: BernsteinPath,
+              wall_time_s: float) -> MissionSummary:
+    m = runner.mission
+    rv, mv = rms_max(np.asarray(traj["e_vertical_m"]))
+    rh, mh = rms_max(np.asarray(traj["e_horizontal_m"]))
+    P = np.c_[traj["x_m"], traj["y_m"], traj["z_m"]]
+    eh_c, ev_c = path_errors_closest(path_native, P)
+    rvc, mvc = rms_max(ev_c)
+    rhc, mhc = rms_max(eh_c)
+    cl = np.asarray(traj["clearance_m"])
+    if np.isfinite(cl).any():
+        k = int(np.nanargmin(cl))
+        min_cl, t_cl = float(cl[k]), float(traj["t_s"][k])
+        min_hull = float(np.nanmin(traj["hull_clearance_m"]))
+    else:
+        min_cl = t_cl = min_hull = math.nan
+    t_end = float(runner.sim.t)
+    g = np.asarray(traj["virtual_time_s"])
+    return MissionSummary(
+        mission=m.name, stack=runner.stack.name, adaptation=m.adaptation, mission_time_s=t_end,
+        completed=runner.end_reason == "finished", end_reason=runner.end_reason,
+        rms_vertical_m=rv, max_vertical_m=mv, rms_horizontal_m=rh, max_horizontal_m=mh,
+        rms_vertical_closest_m=rvc, max_vertical_closest_m=mvc, rms_horizontal_closest_m=rhc,
+        max_horizontal_closest_m=mhc, min_clearance_m=min_cl, min_clearance_t_s=t_cl,
+        min_hull_clearance_m=min_hull, virtual_time_end_s=float(g[-1]) if g.size else math.nan,
+        wall_time_s=wall_time_s, event=runner.event)
+
