@@ -4,8 +4,9 @@
    set to 500) with every node and the recorder, started by the launcher's own code
    (:mod:`bb2_tools.launcher`).  Prints the real-time factor (sim seconds per wall second while
    stepping -- from the first step on, the start-up handshake at t = 0 excluded -- and including
-   start-up) -- goal >= 20x -- and the message counts: what the simulator published (its step count from ``trajectory_csv`` and its re-send counter from the last
-   ``/bb2/status``) against what is in the bag, per topic -- goal: zero lost.
+   start-up) -- goal >= 20x -- and the message counts: what the simulator published (its step count
+   from ``trajectory_csv`` and its re-send counter from the last ``/bb2/status``) against what is in
+   the bag, per topic -- goal: zero lost.
 2. Real time at 100 Hz (``rate_hz: 100``, 100 s of sim time = 20 s wall): a probe node takes the
    DDS source timestamps (the writer's wall clock) of ``/bb2/state_native`` and ``/bb2/planes/cmd``;
    the step period's p50/p99 of ``|period - 10 ms|`` -- goal p99 <= 1 ms -- and the sensor ->
@@ -33,6 +34,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from bb2_tools import launcher as L  # noqa: E402
+from bb2_tools.graph_monitor import free_domain_id  # noqa: E402
+from bb2_tools.supervisor import Supervisor  # noqa: E402
 from bb2_ros.node_common import take_all  # noqa: E402
 
 TS = 0.05  # the ROM's major step (s); one simulator step per Ts of sim time
@@ -115,11 +118,11 @@ def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeou
     out.mkdir(parents=True, exist_ok=True)
     params = out.parent / f"{out.name}_params.yaml"
     params.write_text(yaml.safe_dump({"simulator": {"ros__parameters": sim_params}}))
-    monitor = L.free_domain_id(end_at="simulator")
+    monitor = free_domain_id(end_at="simulator")
     env = dict(os.environ, ROS_DOMAIN_ID=str(monitor.domain_id), ROS_LOG_DIR=str(out / "logs" / "ros"),
                PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     specs = L.graph_specs(mission, out, mode=mode, params=params, monitor=monitor)
-    sup = L.Supervisor(specs, out / "logs", env=env)
+    sup = Supervisor(specs, out / "logs", env=env)
     pr = Probe(monitor.domain_id) if probe else None
     try:
         res = L.run_graph(sup, monitor, first=[s.name for s in specs if s.ready is not None],
@@ -185,8 +188,8 @@ def lockstep(args, tmp: Path) -> None:
     steps = states - 1
     sim_s = steps * TS
     print(f"  real-time factor: {res.rtf_overall:.1f}x while stepping ({stepping_wall:.1f} s wall from the first "
-          f"step to the end; the start-up handshake at t = 0 excluded), {sim_s / total_wall:.1f}x including start-up and shutdown "
-          f"({total_wall:.1f} s)   [goal >= 20x]")
+          f"step to the end; the start-up handshake at t = 0 excluded), {sim_s / total_wall:.1f}x including "
+          f"start-up and shutdown ({total_wall:.1f} s)   [goal >= 20x]")
     reader = BagReader(out)
     counts = reader.message_counts
     status = last_simulator_status(reader)
@@ -241,8 +244,8 @@ def realtime(args, tmp: Path) -> None:
     if answered:
         before = sum(1 for s in stamps if s < answered[0])
         after = sum(1 for s in stamps if s > answered[0] and s not in probe.cmd_src)
-        print(f"  states seen by the probe from t = {stamps[0] * 1e-9:.2f} s (it matches the simulator after its start): "
-              f"unanswered {before} before the first answer (t = {answered[0] * 1e-9:.2f} s; controllers still "
+        print(f"  states seen by the probe from t = {stamps[0] * 1e-9:.2f} s (it matches the simulator after its "
+              f"start): unanswered {before} before the first answer (t = {answered[0] * 1e-9:.2f} s; controllers still "
               f"discovering, the simulator on the failsafe), {after} after it")
     if len(lat_ms):
         print(f"  loop latency /bb2/state_native -> /bb2/planes/cmd (same stamp, source timestamps): "

@@ -20,7 +20,9 @@ from pathlib import Path
 import pytest
 import yaml
 
+from bb2_tools import graph_monitor as M
 from bb2_tools import launcher as L
+from bb2_tools import supervisor as S
 
 from rosenv import ros_env  # noqa: E402  (tests/ros/rosenv.py)
 
@@ -85,7 +87,9 @@ DRIVER = r'''
 """Runs bb2_tools.launcher.run_graph on the graph described by a JSON file (as bb2-launch does)."""
 import json, sys
 from pathlib import Path
-from bb2_tools.launcher import GraphMonitor, ProcessSpec, RestartPolicy, Supervisor, run_graph
+from bb2_tools.graph_monitor import GraphMonitor
+from bb2_tools.launcher import run_graph
+from bb2_tools.supervisor import ProcessSpec, RestartPolicy, Supervisor
 
 cfg = json.loads(Path(sys.argv[1]).read_text())
 mon = GraphMonitor(cfg["domain"])
@@ -112,13 +116,13 @@ sys.exit(res.exit_code)
 # ------------------------------------------------------------------------ fast unit tests (no DDS)
 def test_restart_policies_parse_and_reject_bad_input():
     nodes = ["simulator", "recorder", "mixer"]
-    pol = L.parse_restart_policies(["simulator=stop,recorder=restart:5", "mixer=ignore"], nodes)
-    assert pol["recorder"] == L.RestartPolicy("restart", 5)
+    pol = S.parse_restart_policies(["simulator=stop,recorder=restart:5", "mixer=ignore"], nodes)
+    assert pol["recorder"] == S.RestartPolicy("restart", 5)
     assert pol["simulator"].action == "stop" and pol["mixer"].action == "ignore"
-    assert L.parse_restart_policies(["all=restart"], nodes, default_max=2)["mixer"] == L.RestartPolicy("restart", 2)
+    assert S.parse_restart_policies(["all=restart"], nodes, default_max=2)["mixer"] == S.RestartPolicy("restart", 2)
     for bad in ("simulator", "bogus=stop", "mixer=explode", "mixer=ignore:3", "mixer=restart:x"):
-        with pytest.raises(L.LaunchError):
-            L.parse_restart_policies([bad], nodes)
+        with pytest.raises(S.LaunchError):
+            S.parse_restart_policies([bad], nodes)
 
 
 def test_python_runner_builds_entry_point_commands():
@@ -127,14 +131,14 @@ def test_python_runner_builds_entry_point_commands():
         assert cmd[0] == sys.executable and cmd[1] == "-c"
         module, func = node.entry_point.split(":")
         assert f"from {module} import {func}" in cmd[2]
-    with pytest.raises(L.LaunchError):
+    with pytest.raises(S.LaunchError):
         L.node_command(L.GRAPH_NODES[0], "nonsense")
 
 
 def test_graph_specs_pass_mission_mode_params_and_sim_time(tmp_path):
     mission, params, run = tmp_path / "m.yaml", tmp_path / "p.yaml", tmp_path / "bags" / "run"
     specs = L.graph_specs(mission, run, mode="realtime", params=params, runner="python",
-                          policies={"recorder": L.RestartPolicy("restart", 2)})
+                          policies={"recorder": S.RestartPolicy("restart", 2)})
     names = [s.name for s in specs]
     assert names[0] == "recorder" and names[-1] == "simulator"
     assert set(names) == {n.name for n in L.GRAPH_NODES}
@@ -150,7 +154,7 @@ def test_graph_specs_pass_mission_mode_params_and_sim_time(tmp_path):
     assert rec.stop_stage > max(s.stop_stage for s in specs if s.name != "recorder")
     assert rec.argv(0)[rec.argv(0).index("--out") + 1] == str(run)
     assert rec.argv(1)[rec.argv(1).index("--out") + 1] == str(run.with_name("run_r1"))  # never overwrite
-    assert rec.policy == L.RestartPolicy("restart", 2)
+    assert rec.policy == S.RestartPolicy("restart", 2)
     assert "recorder" not in [s.name for s in L.graph_specs(mission, run, record=False, runner="python")]
 
 
@@ -183,11 +187,11 @@ def test_run_graph_starts_early_nodes_before_the_gated_ones_are_ready(tmp_path):
     the early process has written its file (without 'early' it would never start: start-up timeout)."""
     flag = tmp_path / "early_ran"
     py = sys.executable
-    early = L.ProcessSpec("early", [py, "-c", f"import pathlib, time; pathlib.Path({str(flag)!r}).touch(); "
+    early = S.ProcessSpec("early", [py, "-c", f"import pathlib, time; pathlib.Path({str(flag)!r}).touch(); "
                                               "time.sleep(30)"], early=True)
-    gated = L.ProcessSpec("gated", [py, "-c", "import time; time.sleep(30)"], ready=flag.exists)
-    last = L.ProcessSpec("last", [py, "-c", "import sys; sys.exit(0)"], finishes_graph=True)
-    sup = L.Supervisor([gated, early, last], tmp_path / "logs")
+    gated = S.ProcessSpec("gated", [py, "-c", "import time; time.sleep(30)"], ready=flag.exists)
+    last = S.ProcessSpec("last", [py, "-c", "import sys; sys.exit(0)"], finishes_graph=True)
+    sup = S.Supervisor([gated, early, last], tmp_path / "logs")
     try:
         t0 = time.monotonic()
         res = L.run_graph(sup, None, first=["gated"], ready_timeout_s=15.0, timeout_s=30.0, handle_signals=False)
@@ -220,20 +224,20 @@ def test_bad_input_exits_2_with_one_clear_message(tmp_path, capsys):
 
 
 def test_format_status_and_exit_causes():
-    line = L.format_status(12.5, 0.25, 31.0, 5, 6, 3.0)
+    line = M.format_status(12.5, 0.25, 31.0, 5, 6, 3.0)
     assert "12.50 s" in line and "25.0 %" in line and "31.0x" in line and "5/6" in line
-    assert "--" in L.format_status(None, None, None, 0, 6, 0.0)
-    assert L.exit_cause(-9) == "killed by SIGKILL" and L.exit_cause(3) == "exit code 3"
+    assert "--" in M.format_status(None, None, None, 0, 6, 0.0)
+    assert S.exit_cause(-9) == "killed by SIGKILL" and S.exit_cause(3) == "exit code 3"
 
 
 def test_supervisor_without_dds_reports_restarts_and_failure(tmp_path):
     """Plain processes: a crashing one is restarted up to N times, then stops the rest."""
     crash = [sys.executable, "-c", "import sys; print('boom line'); sys.exit(4)"]
     sleeper = [sys.executable, "-c", "import time; print('sleeping', flush=True); time.sleep(60)"]
-    specs = [L.ProcessSpec("sleeper", sleeper),
-             L.ProcessSpec("crash", crash, L.RestartPolicy("restart", 2))]
+    specs = [S.ProcessSpec("sleeper", sleeper),
+             S.ProcessSpec("crash", crash, S.RestartPolicy("restart", 2))]
     t0 = time.monotonic()
-    with L.Supervisor(specs, tmp_path / "logs", restart_delay_s=0.05) as sup:
+    with S.Supervisor(specs, tmp_path / "logs", restart_delay_s=0.05) as sup:
         sup.start()
         sleeper_pid = sup.pid("sleeper")
         while not sup.done and time.monotonic() - t0 < 20:
@@ -255,10 +259,10 @@ def test_stop_escalates_sigint_sigterm_sigkill_stage_by_stage(tmp_path):
         return [sys.executable, "-c", code]
 
     polite = "signal.signal(signal.SIGINT, lambda *a: sys.exit(0))\n"
-    specs = [L.ProcessSpec("stubborn", proc("SIGINT SIGTERM"), sigint_grace_s=0.3, sigterm_grace_s=0.3),
-             L.ProcessSpec("deaf", proc("SIGINT"), sigint_grace_s=0.3),
-             L.ProcessSpec("last", proc("", polite), stop_stage=1)]
-    sup = L.Supervisor(specs, tmp_path / "logs")
+    specs = [S.ProcessSpec("stubborn", proc("SIGINT SIGTERM"), sigint_grace_s=0.3, sigterm_grace_s=0.3),
+             S.ProcessSpec("deaf", proc("SIGINT"), sigint_grace_s=0.3),
+             S.ProcessSpec("last", proc("", polite), stop_stage=1)]
+    sup = S.Supervisor(specs, tmp_path / "logs")
     sup.start()
     t0 = time.monotonic()
     while not all("up" in sup.last_lines(n) for n in ("stubborn", "deaf", "last")):

@@ -1,0 +1,221 @@
+"""The graph monitor of bb2-launch: a small rclpy node on the graph's ``ROS_DOMAIN_ID`` reading sim time
+(``/clock``), mission progress (``/bb2/mission/progress``) and the simulator's ``/bb2/status``, and answering
+graph questions (which nodes are up, who subscribes to what).
+
+``/clock`` and the progress come once per step (hundreds per wall second in lockstep): they are polled, the
+latest sample only; the status is spun.  From the
+samples the monitor derives the real-time factor and when the mission is over (``end_at``).
+:func:`free_domain_id` finds a domain id nobody else uses; :func:`format_status` is the one progress line.
+"""
+from __future__ import annotations
+
+import collections
+import random
+import struct
+import threading
+import time
+from typing import Iterable
+
+from bb2_ros.node_common import take_all
+from bb2_tools.supervisor import LaunchError
+
+SAFE_DOMAIN_IDS = range(1, 102)  # ROS 2 docs: 0..101 never collide with Linux ephemeral ports
+
+
+def _cdr_unpack(fmt: str, data: bytes) -> tuple:
+    """Unpack a fixed-layout CDR payload (after the 4-byte encapsulation header)."""
+    endian = "<" if len(data) > 1 and data[1] & 1 else ">"
+    return struct.unpack_from(endian + fmt, data, 4)
+
+
+END_WORDS = {"complete", "completed", "finished", "done", "end", "ended"}
+END_AT = ("either", "simulator", "progress")
+"""When the mission is over: the simulator reports the end of the mission duration (status
+``state: finished``), the mission progress reaches 1 (the path is flown), or whichever comes first."""
+
+
+def _unused(_msg) -> None:  # pragma: no cover - polled subscriptions have no executor
+    pass
+
+
+class GraphMonitor:
+    """A small rclpy node (own context, own thread) watching ``/clock``, the mission progress and
+    ``/bb2/status`` on ``domain_id``; also answers graph questions (nodes, subscriptions)."""
+
+    def __init__(self, domain_id: int, *, node_name: str = "bb2_launch_monitor", rtf_window_s: float = 3.0,
+                 end_at: str = "either"):
+        if end_at not in END_AT:
+            raise LaunchError(f"end_at must be one of {END_AT}, got {end_at!r}")
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import HistoryPolicy
+        from rclpy.signals import SignalHandlerOptions
+
+        from bb2_msgs_py.contract import message_class, qos_profile
+
+        self.domain_id = domain_id
+        self.node_name = node_name
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node(node_name, context=self.context, start_parameter_services=False,
+                                      enable_rosout=False)
+        self._lock = threading.Lock()
+        self.sim_time_s: float | None = None
+        self.progress: float | None = None
+        self.status_end = False  # the simulator's status says the mission duration is over
+        self.sim_error: str | None = None  # the simulator's status says it stopped on an error
+        self.end_at = end_at
+        self._samples: collections.deque[tuple[float, float]] = collections.deque()
+        self._first: tuple[float, float] | None = None  # the first /clock (start-up handshake at t0)
+        self._first_step: tuple[float, float] | None = None  # the first /clock after t0 (stepping started)
+        self.rtf_window_s = rtf_window_s
+        n = self.node
+        n.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
+                              self._on_status, qos_profile("/bb2/status"))
+        # /clock and the progress come once per step (hundreds per wall second in lockstep): they are not
+        # spun (a Python callback each would take CPU from the graph) but polled, the latest sample only,
+        # from a second node that no executor waits on.
+        self.poll_node_name = node_name + "_poll"
+        self._poll_node = rclpy.create_node(self.poll_node_name, context=self.context,
+                                            start_parameter_services=False, enable_rosout=False)
+
+        def latest_only(name):
+            q = qos_profile(name)
+            q.history, q.depth = HistoryPolicy.KEEP_LAST, 1
+            return q
+
+        self._clock_sub = self._poll_node.create_subscription(
+            message_class("rosgraph_msgs/msg/Clock"), "/clock", _unused, latest_only("/clock"), raw=True)
+        self._progress_sub = self._poll_node.create_subscription(
+            message_class("std_msgs/msg/Float64"), "/bb2/mission/progress", _unused,
+            latest_only("/bb2/mission/progress"), raw=True)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(n)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name="bb2-launch-monitor", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while not self._stop.is_set() and self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=self.POLL_S)
+                self._poll()
+            except Exception:  # context shut down under us
+                if self._stop.is_set():
+                    break
+                raise
+
+    POLL_S = 0.05
+
+    def _poll(self) -> None:
+        """Take the latest /clock and progress (if new ones came)."""
+        for sub, handler in ((self._clock_sub, self._on_clock), (self._progress_sub, self._on_progress)):
+            got = take_all(sub)
+            if got:
+                data, info = got[-1]
+                handler(data, int(info.get("source_timestamp", 0)) * 1e-9 or time.time())
+
+    def _on_clock(self, data: bytes, wall: float) -> None:
+        """``wall``: the DDS source timestamp (the simulator's wall clock when it published this /clock)."""
+        sec, nsec = _cdr_unpack("iI", data)
+        t = sec + nsec * 1e-9
+        with self._lock:
+            self.sim_time_s = t
+            if self._first is None:
+                self._first = (wall, t)
+            elif self._first_step is None and t != self._first[1]:
+                self._first_step = (wall, t)
+            self._samples.append((wall, t))
+            while len(self._samples) > 2 and wall - self._samples[0][0] > self.rtf_window_s:
+                self._samples.popleft()
+
+    def _on_progress(self, data: bytes, _wall: float = 0.0) -> None:
+        (p,) = _cdr_unpack("d", data)
+        with self._lock:
+            self.progress = p
+
+    def _on_status(self, msg) -> None:
+        for st in msg.status:
+            if "simulator" not in st.name:
+                continue
+            vals = {kv.key: kv.value for kv in st.values}
+            state = vals.get("state", "").lower()
+            if state in END_WORDS:
+                self.status_end = True
+            elif state == "diverged":
+                self.sim_error = vals.get("error") or st.message or "diverged"
+
+    def rtf(self, *, overall: bool = False) -> float | None:
+        """Sim seconds per wall second over the last window, or (``overall``) while stepping: from the
+        first /clock after the start time (the first step done; the graph's start-up handshake at t0,
+        which waits for every node to answer, is not stepping) to the last one."""
+        if overall:
+            sim_s, wall_s = self.stepping_span()
+            return sim_s / wall_s if wall_s else None
+        with self._lock:
+            if len(self._samples) < 2:
+                return None
+            (w0, t0), (w1, t1) = self._samples[0], self._samples[-1]
+        return (t1 - t0) / (w1 - w0) if w1 > w0 else None
+
+    def stepping_span(self) -> tuple[float | None, float | None]:
+        """(sim s, wall s) from the first /clock after the start time to the last one."""
+        with self._lock:
+            if self._first_step is None or not self._samples:
+                return None, None
+            (w0, t0), (w1, t1) = self._first_step, self._samples[-1]
+        return t1 - t0, w1 - w0
+
+    @property
+    def mission_complete(self) -> bool:
+        by_sim = self.status_end
+        by_progress = self.progress is not None and self.progress >= 1.0
+        return {"either": by_sim or by_progress, "simulator": by_sim, "progress": by_progress}[self.end_at]
+
+    def node_names(self) -> list[str]:
+        own = (self.node_name, self.poll_node_name)
+        return sorted(n for n, _ns in self.node.get_node_names_and_namespaces() if n not in own)
+
+    def subscribed(self, node_name: str, topics: Iterable[str]) -> bool:
+        """Whether ``node_name`` has a subscription on each of ``topics`` (as discovered here)."""
+        for t in topics:
+            if not any(i.node_name == node_name for i in self.node.get_subscriptions_info_by_topic(t)):
+                return False
+        return True
+
+    def close(self) -> None:
+        import rclpy
+
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        try:
+            self.executor.shutdown(timeout_sec=1.0)
+            self._poll_node.destroy_node()
+            self.node.destroy_node()
+        finally:
+            if self.context.ok():
+                rclpy.shutdown(context=self.context)
+
+
+def free_domain_id(*, rng: random.Random | None = None, tries: int = 8, listen_s: float = 0.5,
+                   **monitor_kw) -> GraphMonitor:
+    """A :class:`GraphMonitor` on a random domain id (1..101) where no other node is seen."""
+    rng = rng or random.Random()
+    candidates = rng.sample(list(SAFE_DOMAIN_IDS), tries)
+    for d in candidates:
+        mon = GraphMonitor(d, **monitor_kw)
+        time.sleep(listen_s)
+        if not mon.node_names():
+            return mon
+        mon.close()
+    raise LaunchError(f"no free ROS_DOMAIN_ID among {candidates}; give one with --domain-id")
+
+
+def format_status(sim_time_s: float | None, progress: float | None, rtf: float | None,
+                  up: int, total: int, wall_s: float) -> str:
+    """The one progress line."""
+    t = "--" if sim_time_s is None else f"{sim_time_s:8.2f} s"
+    p = "--" if progress is None else f"{100.0 * progress:5.1f} %"
+    r = "--" if rtf is None else f"{rtf:6.1f}x"
+    return f"[bb2-launch] sim {t} | progress {p} | RTF {r} | nodes {up}/{total} | wall {wall_s:6.1f} s"
