@@ -5,7 +5,8 @@ MCAP, analyse the bag, and say where everything is.
 
 Steps: ``bb2-launch MISSION --mode lockstep`` (every node its own process, isolated ROS_DOMAIN_ID, the
 simulator's first state once the recorder reads every topic) -> ``bb2-analyze BAG --mission MISSION`` (path
-errors, clearance, command statistics, paper-style figures, one HTML report) -> summary. Exit status: the launcher's (0 mission complete) or the analysis's.
+errors, clearance, command statistics, paper-style figures, one HTML report) -> summary. Exit status: the launcher's
+(0 mission complete) or the analysis's.
 """
 from __future__ import annotations
 
@@ -37,7 +38,8 @@ def _summary(figures_json: Path) -> None:
     if f.get("min_clearance_m") is not None:
         print(f"  minimum ground clearance {f['min_clearance_m']:.2f} m (CG), "
               f"{f.get('min_hull_clearance_m', float('nan')):.2f} m (lowest hull point)")
-    print(f"  mission time {f['mission_time_s']:.2f} s, graph real-time factor {f.get('real_time_factor', float('nan')):.1f}x")
+    print(f"  mission time {f['mission_time_s']:.2f} s, "
+          f"graph real-time factor {f.get('real_time_factor', float('nan')):.1f}x")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -123,7 +123,8 @@ def main(argv: list[str] | None = None) -> int:
     fin = summary["final_status"]
     print(f"hil monitor: {summary['odometry_messages']} odometry messages to t = {summary['t_last_s']:.2f} s, "
           f"state finite: {summary['state_finite']}\n"
-          f"  path error horizontal RMS {summary['e_horizontal_rms_m']:.3f} m (max {summary['e_horizontal_max_m']:.3f}),"
+          f"  path error horizontal RMS {summary['e_horizontal_rms_m']:.3f} m "
+          f"(max {summary['e_horizontal_max_m']:.3f}),"
           f" vertical RMS {summary['e_vertical_rms_m']:.3f} m (max {summary['e_vertical_max_m']:.3f})\n"
           f"  failsafe released at t = {summary['failsafe_released_at_s']} s, engaged again afterwards: "
           f"{summary['failsafe_after_release']}; simulator: {fin.get('state')}, failsafe_steps "
