@@ -90,11 +90,10 @@ class HullProbes:
 
 @dataclass
 class MissionComponents:
-    """Everything a run is built from (shared by :class:`MissionRunner` and the ROS nodes).
+    """Everything an in-process run is built from (:class:`~bb2_mission.runner.MissionRunner`).
 
-    ``model``/``simulator`` (at ``x0``, t = 0) for the simulator node; ``stack`` (fresh, built by
-    ``build_stack(m.stack, m.path, stack_overrides(m))``; ``stack.name``, ``stack.config``) for the control nodes -- its pieces (``stack.guidance``, ``stack.inner``,
-    ``stack.mixer``, ``stack.speed``) can run in separate processes; ``path`` in the stack's frame.
+    ``model``/``simulator`` (at ``x0``, t = 0); ``stack`` (fresh, :func:`build_mission_stack`); the hull probes
+    and the broaching limit.  The ROS nodes build the same pieces one at a time with the builders below.
     """
 
     mission: Mission

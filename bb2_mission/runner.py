@@ -24,7 +24,7 @@ from bb2_planner.bernstein import BernsteinPath
 from bb2_mission.components import mission_components, terrain_elevation
 from bb2_mission.records import MissionRow, rows_to_columns
 from bb2_mission.schema import Mission, load_mission
-from bb2_mission.summary import MissionEvent, MissionSummary, summarize
+from bb2_mission.summary import EndReason, MissionEvent, MissionSummary, summarize
 
 __all__ = ["MissionStep", "MissionResult", "MissionRunner", "run_mission"]
 
@@ -74,7 +74,7 @@ class MissionRunner:
         self.n_steps = int(math.floor(mission.duration / self.sim.h + 1e-9))
         self.done = False
         self.event: MissionEvent | None = None
-        self.end_reason = ""
+        self.end_reason = EndReason.RUNNING
         self._last_out: Any = None
 
     # -- terrain
@@ -102,18 +102,19 @@ class MissionRunner:
         try:
             out = self.stack.step(state)
         except (PathFollowingError, NonFiniteInputError) as e:
-            self._end("control_error", MissionEvent("control_error", sim.t, x[0:3].copy(), str(e)))
+            event = MissionEvent(EndReason.CONTROL_ERROR, sim.t, x[0:3].copy(), str(e))
+            self._end(event.kind, event)
             row = self._row(state, x, self._last_out, None, tz, cl, hull) if self._last_out else None
             return MissionStep(state, None, None, tz, cl, hull, row, self.event)
         self._last_out = out
         event = None
         lim = self.mission.limits
         if math.isfinite(hull) and hull < lim.min_hull_clearance_m:
-            event = MissionEvent("grounded", sim.t, x[0:3].copy(),
+            event = MissionEvent(EndReason.GROUNDED, sim.t, x[0:3].copy(),
                                  f"lowest hull point {hull:.2f} m above the terrain (limit "
                                  f"{lim.min_hull_clearance_m} m); CG clearance {cl:.2f} m")
         elif x[2] > self.c.max_cg_z_m:
-            event = MissionEvent("broached", sim.t, x[0:3].copy(),
+            event = MissionEvent(EndReason.BROACHED, sim.t, x[0:3].copy(),
                                  f"CG z = {x[2]:.2f} m above the limit {self.c.max_cg_z_m:.2f} m"
                                  + (" (sail top at the calm surface)" if lim.max_cg_z_m is None else ""))
         rec = None
@@ -121,17 +122,17 @@ class MissionRunner:
             try:
                 rec = sim.step(out.planes_deg, out.rps)
             except NonFiniteStateError as e:
-                event = MissionEvent("diverged", sim.t, x[0:3].copy(), str(e))
+                event = MissionEvent(EndReason.DIVERGED, sim.t, x[0:3].copy(), str(e))
         row = self._row(state, x, out, rec, tz, cl, hull)
         if event is not None:
             self._end(event.kind, event)
         elif out.finished:
-            self._end("finished", None)
+            self._end(EndReason.FINISHED, None)
         elif sim.n >= self.n_steps:
-            self._end("duration", None)
+            self._end(EndReason.DURATION, None)
         return MissionStep(state, out, rec, tz, cl, hull, row, event)
 
-    def _end(self, reason: str, event: MissionEvent | None) -> None:
+    def _end(self, reason: EndReason, event: MissionEvent | None) -> None:
         self.done, self.end_reason, self.event = True, reason, event
     def _row(self, state: Any, x: np.ndarray, out: Any, rec: Any, tz: float, cl: float, hull: float) -> MissionRow:
         from bb2_sim.frames import rotation_native

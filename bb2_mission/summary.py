@@ -8,27 +8,42 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any, Mapping
 
 import numpy as np
 
 from bb2_planner.bernstein import BernsteinPath
 
-__all__ = ["MissionEvent", "MissionSummary", "path_errors_closest", "summarize", "rms_max"]
+__all__ = ["EndReason", "MissionEvent", "MissionSummary", "path_errors_closest", "summarize", "rms_max"]
+
+
+class EndReason(StrEnum):
+    """Why a mission run ended (the first three are normal ends; the others are failures, each a
+    :class:`MissionEvent`)."""
+
+    RUNNING = ""                    #: not ended yet
+    FINISHED = "finished"           #: the stack finished the path (virtual time at its end)
+    DURATION = "duration"           #: the mission's time limit
+    GROUNDED = "grounded"           #: the lowest hull point came closer to the terrain than the limit
+    BROACHED = "broached"           #: the CG rose above the broaching limit
+    DIVERGED = "diverged"           #: the ROM's state became non-finite
+    CONTROL_ERROR = "control_error"  #: the stack could not compute a command
 
 
 @dataclass(frozen=True)
 class MissionEvent:
     """Why a mission failed: ``grounded`` / ``broached`` / ``diverged`` / ``control_error``."""
 
-    kind: str
+    kind: EndReason
     t: float                       #: s
     p_native: np.ndarray           #: CG position (x, y, z) native, m
     detail: str
 
     def __str__(self) -> str:
         x, y, z = (float(v) for v in self.p_native)
-        return f"{self.kind} at t = {self.t:.2f} s, CG at x = {x:.1f}, y = {y:.1f}, z = {z:.1f} m (native): {self.detail}"
+        return (f"{self.kind} at t = {self.t:.2f} s, CG at x = {x:.1f}, y = {y:.1f}, z = {z:.1f} m (native): "
+                f"{self.detail}")
 
 
 
@@ -42,7 +57,7 @@ class MissionSummary:
     adaptation: bool
     mission_time_s: float
     completed: bool
-    end_reason: str                 #: finished | duration | grounded | broached | diverged | control_error
+    end_reason: EndReason
     rms_vertical_m: float
     max_vertical_m: float
     rms_horizontal_m: float
@@ -72,8 +87,8 @@ class MissionSummary:
                f"  horizontal path error  RMS {self.rms_horizontal_m:7.3f} m   max {self.max_horizontal_m:7.3f} m"
                f"   (closest point: RMS {self.rms_horizontal_closest_m:.3f}, max {self.max_horizontal_closest_m:.3f})"]
         if math.isfinite(self.min_clearance_m):
-            out.append(f"  minimum ground clearance {self.min_clearance_m:.2f} m (CG, at t = {self.min_clearance_t_s:.1f} s);"
-                       f" lowest hull point {self.min_hull_clearance_m:.2f} m")
+            out.append(f"  minimum ground clearance {self.min_clearance_m:.2f} m (CG, at t = "
+                       f"{self.min_clearance_t_s:.1f} s); lowest hull point {self.min_hull_clearance_m:.2f} m")
         else:
             out.append("  minimum ground clearance: n/a (no terrain)")
         rt = self.mission_time_s / self.wall_time_s if self.wall_time_s > 0 else float("inf")
@@ -134,7 +149,7 @@ def summarize(runner: Any, traj: Mapping[str, np.ndarray], path_native: Bernstei
     g = np.asarray(traj["virtual_time_s"])
     return MissionSummary(
         mission=m.name, stack=runner.stack.name, adaptation=m.adaptation, mission_time_s=t_end,
-        completed=runner.end_reason == "finished", end_reason=runner.end_reason,
+        completed=runner.end_reason is EndReason.FINISHED, end_reason=runner.end_reason,
         rms_vertical_m=rv, max_vertical_m=mv, rms_horizontal_m=rh, max_horizontal_m=mh,
         rms_vertical_closest_m=rvc, max_vertical_closest_m=mvc, rms_horizontal_closest_m=rhc,
         max_horizontal_closest_m=mhc, min_clearance_m=min_cl, min_clearance_t_s=t_cl,

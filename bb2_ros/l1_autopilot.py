@@ -19,26 +19,27 @@ import math
 import sys
 from typing import Sequence
 
+from rclpy.node import Node
+
 from bb2_control.errors import NonFiniteInputError
 from bb2_control.path_following import flow_to_body_rates
 from bb2_msgs_py import conversions as cv
+from bb2_msgs_py.contract import message_class, qos_profile, topic
 
-from bb2_ros.node_common import (NodeStatus, StampedCache, check_remaps, declare, mission_pieces,
-                                   require_choice, require_positive, require_rate_stack, run_node,
-                                   subscribe_state, time_msg)
+from bb2_mission.components import build_mission_stack
+from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, declare, mission_only,
+                                 require_choice, require_positive, require_rate_stack, run_node, subscribe_state,
+                                 time_msg)
 
 TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd",
           "/bb2/propeller/cmd", "/bb2/status")
 KEEP = 20  # pending inputs kept per kind (stamps not yet paired)
 
 
-class L1AutopilotShell:
+class L1Autopilot(Node):
     def __init__(self, argv: Sequence[str]):
-        from rclpy.node import Node
-
-        from bb2_msgs_py.contract import message_class, qos_profile, topic
-
-        self.node = node = Node("l1_autopilot")
+        super().__init__("l1_autopilot")
+        node = self
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         source = require_choice("state_source", declare(
             node, "state_source", "native", "native (/bb2/state_native, exact) | odometry (/bb2/odom)"),
@@ -47,8 +48,8 @@ class L1AutopilotShell:
                                                              "wall period of this node's /bb2/status"))
         strict = bool(declare(node, "strict_remaps", False, "a remap rule naming no topic of this node is an error"))
         check_remaps(node, argv, TOPICS, strict=strict)
-        self.mission, comp = mission_pieces(mission_file)
-        self.stack = comp.stack
+        self.mission = mission_only(mission_file)
+        self.stack = build_piece(self.mission, build_mission_stack)  # its inner loop and speed command run here
         require_rate_stack(self.stack)
         self.cache = StampedCache()
         self.states: dict[int, object] = {}
@@ -68,11 +69,11 @@ class L1AutopilotShell:
             q_c, r_c = cv.rate_command_from_message(msg)
         except cv.ConversionError as exc:
             self.counts["rejected"] += 1
-            self.node.get_logger().warning(f"rejected rate command: {exc}", throttle_duration_sec=2.0)
+            self.get_logger().warning(f"rejected rate command: {exc}", throttle_duration_sec=2.0)
             return
         if not (math.isfinite(q_c) and math.isfinite(r_c)):
             self.counts["rejected"] += 1
-            self.node.get_logger().warning(f"rejected non-finite rate command ({q_c}, {r_c})",
+            self.get_logger().warning(f"rejected non-finite rate command ({q_c}, {r_c})",
                                            throttle_duration_sec=2.0)
             return
         ns = cv.stamp_to_ns(msg.header.stamp)
@@ -107,7 +108,7 @@ class L1AutopilotShell:
             rps = stack.speed.step()
         except (NonFiniteInputError, ValueError) as exc:
             self.counts["errors"] += 1
-            self.node.get_logger().error(f"autopilot failed at t = {state.t:.3f} s: {exc}", throttle_duration_sec=2.0)
+            self.get_logger().error(f"autopilot failed at t = {state.t:.3f} s: {exc}", throttle_duration_sec=2.0)
             return
         st = time_msg(ns)
         vh = cv.vh_message(0.0, math.radians(dV_deg), math.radians(dH_deg))
@@ -118,8 +119,8 @@ class L1AutopilotShell:
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    """Entry point (``ros2 run bb2_control l1_autopilot``)."""
-    return run_node("l1_autopilot", L1AutopilotShell, args)
+    """Entry point (``ros2 run bb2_ros l1_autopilot``)."""
+    return run_node("l1_autopilot", L1Autopilot, args)
 
 
 if __name__ == "__main__":

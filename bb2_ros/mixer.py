@@ -1,8 +1,9 @@
 """``mixer`` node: virtual plane commands (δV, δH) -> the five plane commands δ1..δ5.
 
-A thin shell around the mission stack's X-plane mixer (``stack.mixer``, built by the mission runner's
-factory): each ``/bb2/autopilot/vh_cmd`` (rad) becomes one ``/bb2/planes/cmd`` (``JointState``
-delta1..delta5, rad) with the same stamp.  A stamp already answered is answered again from the cache.
+A thin shell around the mission stack's X-plane mixer (only the mixer, built by
+:func:`bb2_mission.components.build_mixer`): each ``/bb2/autopilot/vh_cmd`` (rad) becomes one
+``/bb2/planes/cmd`` (``JointState`` delta1..delta5, rad) with the same stamp.  A stamp already answered is
+answered again from the cache.
 
 Parameters: ``mission_file``, ``status_period_s``, ``strict_remaps``.
 """
@@ -12,29 +13,30 @@ import math
 import sys
 from typing import Sequence
 
+from rclpy.node import Node
+
 from bb2_control.errors import NonFiniteInputError
 from bb2_msgs_py import conversions as cv
+from bb2_msgs_py.contract import message_class, qos_profile
 
-from bb2_ros.node_common import (NodeStatus, StampedCache, check_remaps, declare, mission_pieces,
-                                   require_positive, run_node)
+from bb2_mission.components import build_mixer
+from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, declare, mission_only,
+                                 require_positive, run_node)
 
 TOPICS = ("/bb2/autopilot/vh_cmd", "/bb2/planes/cmd", "/bb2/status")
 
 
-class MixerShell:
+class Mixer(Node):
     def __init__(self, argv: Sequence[str]):
-        from rclpy.node import Node
-
-        from bb2_msgs_py.contract import message_class, qos_profile
-
-        self.node = node = Node("mixer")
+        super().__init__("mixer")
+        node = self
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         period = require_positive("status_period_s", declare(node, "status_period_s", 1.0,
                                                              "wall period of this node's /bb2/status"))
         strict = bool(declare(node, "strict_remaps", False, "a remap rule naming no topic of this node is an error"))
         check_remaps(node, argv, TOPICS, strict=strict)
-        self.mission, comp = mission_pieces(mission_file)
-        self.mixer = comp.stack.mixer
+        self.mission = mission_only(mission_file)
+        self.mixer = build_piece(self.mission, build_mixer)  # only the mixer: no hull, no path, no guidance
         self.cache = StampedCache()
         self.counts = {"answered": 0, "replayed": 0, "rejected": 0}
         self.pub = node.create_publisher(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd",
@@ -54,7 +56,7 @@ class MixerShell:
             planes_deg = self.mixer.step(math.degrees(dV), math.degrees(dH))
         except (cv.ConversionError, NonFiniteInputError) as exc:
             self.counts["rejected"] += 1
-            self.node.get_logger().warning(f"rejected vh command: {exc}", throttle_duration_sec=2.0)
+            self.get_logger().warning(f"rejected vh command: {exc}", throttle_duration_sec=2.0)
             return
         out = cv.planes_message(0.0, [math.radians(float(d)) for d in planes_deg])
         out.header.stamp = msg.header.stamp
@@ -63,8 +65,8 @@ class MixerShell:
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    """Entry point (``ros2 run bb2_control mixer``)."""
-    return run_node("mixer", MixerShell, args)
+    """Entry point (``ros2 run bb2_ros mixer``)."""
+    return run_node("mixer", Mixer, args)
 
 
 if __name__ == "__main__":

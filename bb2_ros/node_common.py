@@ -1,6 +1,7 @@
 """Shared rclpy plumbing of the BB2 nodes (simulator, planner, path_following, l1_autopilot, mixer).
 
-A node here is a thin shell: declared parameters in, a library call, messages out.  This module holds
+A node here is a thin shell (an ``rclpy.node.Node`` subclass): declared parameters in, a library call,
+messages out.  This module holds
 what every shell needs and nothing numerical:
 
 * :func:`run_node` -- ``rclpy.init(args=args)``, build the node, spin until SIGINT/SIGTERM, exit 0;
@@ -9,8 +10,9 @@ what every shell needs and nothing numerical:
   ``--ros-args --params-file F.yaml`` and ``-p name:=value`` apply as usual.
 * :func:`check_remaps` -- a ``-r from:=to`` rule that names no topic of the node is reported (or is
   an error with ``strict_remaps: true``), so a typo in a remap never passes silently.
-* :func:`mission_pieces` -- the mission's model/simulator/stack, built by the mission runner's own
-  factory (:func:`bb2_mission.mission_components`), so the graph equals the library runner.
+* :func:`mission_only` and :func:`build_piece` -- the mission file loaded, and the one piece a node needs
+  built by the mission layer's own builders (:mod:`bb2_mission.components`, the runner's factory), so the
+  graph equals the library runner, with the same clear errors.
 * :class:`Throttle` -- wall-clock throttling of repeated warnings with a count of the suppressed ones.
 
 Topic remapping is the standard ROS 2 one: ``--ros-args -r /bb2/odom:=/other/odom`` (optionally
@@ -24,6 +26,7 @@ import signal
 import sys
 import threading
 import time
+from enum import StrEnum
 from typing import Any, Callable, Iterable, Sequence
 
 EXIT_OK = 0
@@ -121,15 +124,6 @@ def check_remaps(node, argv: Sequence[str], topics: Iterable[str], *, strict: bo
     return bad
 
 
-# ----------------------------------------------------------------------------------------- mission
-def mission_pieces(mission_file: str):
-    """``(mission, components)``: the mission file loaded and built by the mission runner's own factory
-    (:func:`bb2_mission.mission_components`: model, simulator at x0, stack), so the graph starts
-    from the very objects the library runner starts from."""
-    mission = mission_only(mission_file)
-    return mission, components_for(mission)
-
-
 # ----------------------------------------------------------------------------------------- throttling
 class Throttle:
     """At most one log line per ``period_s`` of wall time per key; counts what it suppressed."""
@@ -186,10 +180,16 @@ def _profiler():
     return prof
 
 
+def _node_of(shell):
+    from rclpy.node import Node
+
+    return shell if isinstance(shell, Node) else shell.node
+
+
 def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str] | None = None) -> int:
     """Init rclpy with ``args`` (``sys.argv`` when None), build ``factory(argv)``, spin until SIGINT/SIGTERM.
 
-    ``factory`` returns an object with ``.node`` (an rclpy Node) and optionally ``close()`` and
+    ``factory`` returns an ``rclpy.node.Node`` (or an object with ``.node``), optionally with ``close()``,
     ``done`` (a bool: stop spinning, e.g. the simulator's ``exit_at_end``) and ``exit_code`` (default 0).
     Exit status: 0 clean stop, 2 bad params file / parameter / mission, 1 runtime error (e.g. the
     simulation diverged).
@@ -214,7 +214,7 @@ def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str]
             _error(name, str(exc))
             return EXIT_BAD_INPUT
         executor = make_executor()
-        executor.add_node(shell.node)
+        executor.add_node(_node_of(shell))
         profiler = _profiler()
         try:
             while not stop.is_set() and rclpy.ok() and not getattr(shell, "done", False):
@@ -232,7 +232,7 @@ def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str]
             try:
                 if hasattr(shell, "close"):
                     shell.close()
-                shell.node.destroy_node()
+                _node_of(shell).destroy_node()
             except Exception:  # pragma: no cover - best effort at shutdown
                 pass
         for s, h in previous.items():
@@ -311,12 +311,11 @@ def mission_only(mission_file: str):
         raise NodeConfigError(f"mission file {mission_file!r}: {exc}") from None
 
 
-def components_for(mission):
-    """:func:`bb2_mission.mission_components` of a loaded mission, with clear errors."""
-    from bb2_mission import mission_components
-
+def build_piece(mission, builder: Callable[[Any], Any]):
+    """``builder(mission)`` -- one of :mod:`bb2_mission.components`' builders (the simulator, the stack, the
+    mixer ...) -- with clear errors: a node builds only its own piece of the mission."""
     try:
-        return mission_components(mission)
+        return builder(mission)
     except (ValueError, KeyError, TypeError, OSError) as exc:
         raise NodeConfigError(f"mission {getattr(mission, 'name', '?')!r}: {exc}") from None
 
@@ -331,7 +330,14 @@ def require_rate_stack(stack) -> None:
             "carries q_c/r_c rate commands (stack type rate_pf_3d, e.g. rate_2022); fly it with `bb2-sim mission`")
 
 
-STATE_SOURCES = ("native", "odometry")
+class StateSource(StrEnum):
+    """Where a controller node reads the vehicle state."""
+
+    NATIVE = "native"      #: /bb2/state_native: exact, reliable; the lockstep trigger
+    ODOMETRY = "odometry"  #: /bb2/odom: REP-103, sensor QoS (external tools, HIL)
+
+
+STATE_SOURCES = tuple(s.value for s in StateSource)
 
 
 def subscribe_state(node, source: str, callback: Callable[[Any, int], None]):
@@ -341,8 +347,7 @@ def subscribe_state(node, source: str, callback: Callable[[Any, int], None]):
     from bb2_msgs_py import conversions as cv
     from bb2_msgs_py.contract import message_class, qos_profile
 
-    require_choice("state_source", source, STATE_SOURCES)
-    if source == "native":
+    if StateSource(require_choice("state_source", source, STATE_SOURCES)) is StateSource.NATIVE:
         def on_native(msg):
             try:
                 s = cv.state_native_from_message(msg)

@@ -23,25 +23,26 @@ from typing import Sequence
 import numpy as np
 from std_msgs.msg import Float64
 
+from rclpy.node import Node
+
 from bb2_control.errors import NonFiniteInputError, PathFollowingError
 from bb2_msgs_py import conversions as cv
+from bb2_msgs_py.contract import message_class, qos_profile, topic
 
-from bb2_ros.node_common import (NodeStatus, StampedCache, check_remaps, components_for, declare,
-                                   mission_only, require_choice, require_positive, require_rate_stack,
-                                   run_node, subscribe_state, time_msg)
+from bb2_mission.components import build_mission_stack
+from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, declare, mission_only,
+                                 require_choice, require_positive, require_rate_stack, run_node, subscribe_state,
+                                 time_msg)
 
 PROGRESS_SAMPLES = 2001  # arc-length table for the progress (linear interpolation: < 1e-4 m on the shipped paths)
 TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/path/bernstein", "/bb2/guidance/rate_cmd",
           "/bb2/guidance/path_error", "/bb2/mission/progress", "/bb2/status")
 
 
-class PathFollowingShell:
+class PathFollowing(Node):
     def __init__(self, argv: Sequence[str]):
-        from rclpy.node import Node
-
-        from bb2_msgs_py.contract import message_class, qos_profile, topic
-
-        self.node = node = Node("path_following")
+        super().__init__("path_following")
+        node = self
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         source = require_choice("state_source", declare(
             node, "state_source", "native", "native (/bb2/state_native, exact) | odometry (/bb2/odom)"),
@@ -80,23 +81,23 @@ class PathFollowingShell:
         if self.path_source == "topic":
             if not (path.frame == mission.path.frame and path.t0 == mission.path.t0 and path.tf == mission.path.tf
                     and np.array_equal(path.control_points, mission.path.control_points)):
-                self.node.get_logger().warning("the planner's path differs from this node's mission path: "
+                self.get_logger().warning("the planner's path differs from this node's mission path: "
                                                "flying the planner's")
             mission = dataclasses.replace(mission, path=path)
-        stack = components_for(mission).stack
+        stack = build_piece(mission, build_mission_stack)  # its guidance runs here
         require_rate_stack(stack)
         self.stack = stack
         # progress = s(gamma) / L from a table of the arc length (np.interp per tick, not a quadrature)
         self._s_t, self._s = stack.path.cumulative_arc_length(PROGRESS_SAMPLES)
         self.length_m = float(self._s[-1])
-        self.node.get_logger().info(f"path following ready: stack {stack.name}, path {path!r}, "
+        self.get_logger().info(f"path following ready: stack {stack.name}, path {path!r}, "
                                     f"length {self.length_m:.1f} m")
 
     def _on_path(self, msg) -> None:
         try:
             path = cv.bernstein_from_message(msg, name=self.mission.path.name)
         except cv.ConversionError as exc:
-            self.node.get_logger().error(f"ignored /bb2/path/bernstein: {exc}")
+            self.get_logger().error(f"ignored /bb2/path/bernstein: {exc}")
             return
         self._build(path)
 
@@ -114,7 +115,7 @@ class PathFollowingShell:
             pf = stack.guidance.step(x["p"], x["R_BI"], x["v_flu"])
         except (NonFiniteInputError, PathFollowingError, ValueError) as exc:
             self.counts["errors"] += 1
-            self.node.get_logger().error(f"path following failed at t = {state.t:.3f} s: {exc}",
+            self.get_logger().error(f"path following failed at t = {state.t:.3f} s: {exc}",
                                          throttle_duration_sec=2.0)
             return
         st = time_msg(stamp_ns)
@@ -140,8 +141,8 @@ class PathFollowingShell:
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    """Entry point (``ros2 run bb2_control path_following``)."""
-    return run_node("path_following", PathFollowingShell, args)
+    """Entry point (``ros2 run bb2_ros path_following``)."""
+    return run_node("path_following", PathFollowing, args)
 
 
 if __name__ == "__main__":

@@ -12,20 +12,20 @@ from __future__ import annotations
 import sys
 from typing import Sequence
 
+from rclpy.node import Node
+
+from bb2_msgs_py import conversions as cv
+from bb2_msgs_py.contract import message_class, qos_profile, topic
 from bb2_ros.node_common import (NodeConfigError, NodeStatus, check_remaps, declare, mission_only,
-                                   require_positive, run_node)
+                                 require_positive, run_node)
 
 TOPICS = ("/bb2/path", "/bb2/path/bernstein", "/bb2/status")
 
 
-class PlannerShell:
+class Planner(Node):
     def __init__(self, argv: Sequence[str]):
-        from rclpy.node import Node
-
-        from bb2_msgs_py import conversions as cv
-        from bb2_msgs_py.contract import message_class, qos_profile, topic
-
-        self.node = node = Node("planner")
+        super().__init__("planner")
+        node = self
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         n = int(declare(node, "path_samples", 1001, "number of samples published on /bb2/path (>= 2)"))
         if n < 2:
@@ -51,8 +51,8 @@ class PlannerShell:
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    """Entry point (``ros2 run bb2_planner planner``)."""
-    return run_node("planner", PlannerShell, args)
+    """Entry point (``ros2 run bb2_ros planner``)."""
+    return run_node("planner", Planner, args)
 
 
 if __name__ == "__main__":

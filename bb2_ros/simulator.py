@@ -52,9 +52,11 @@ Lockstep handshake: the simulator waits for ``/bb2/planes/cmd`` AND ``/bb2/prope
 ``t_n`` (reliable QoS, like ``/bb2/state_native`` that triggers the controllers), then integrates; so no
 message the handshake needs can be dropped and the run is deterministic.
 
-Command validation: non-finite values, wrong joint names/sizes, a frame other than ``base_link``, stale or
-future stamps are rejected (never integrated); plane commands beyond the ROM's plane limit and propeller
-commands outside its rps limits are clamped; each with a throttled warning and a counter in the status.
+Command validation, the handshake, the watchdog and the failsafe are the ROS-free lockstep gate
+(:mod:`bb2_mission.lockstep_gate`): non-finite values, wrong joint names/sizes, a frame other than
+``base_link``, stale or future stamps are rejected (never integrated); plane commands beyond the ROM's plane
+limit and propeller commands outside its rps limits are clamped; each with a throttled warning and a counter in
+the status.  This node turns messages into the gate's inputs and its decisions into steps and messages.
 """
 from __future__ import annotations
 
@@ -68,13 +70,19 @@ from typing import Sequence
 
 import numpy as np
 
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+
+from bb2_mission.components import build_simulator, nominal_rps
+from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, StepDecision,
+                                       TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
-from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT
+from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT, message_class, qos_profile, topic
 from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.state import VehicleState
 
-from bb2_ros.node_common import (NodeConfigError, Throttle, check_remaps, declare, mission_pieces,
-                                   require_choice, require_positive, run_node)
+from bb2_ros.node_common import (NodeConfigError, Throttle, build_piece, check_remaps, declare, mission_only,
+                                 require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/status")
@@ -82,30 +90,20 @@ TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd")
 TWO_PI = 2.0 * math.pi
 
 
-def _piece(components, name: str, default=None):
-    if isinstance(components, dict):
-        return components.get(name, default)
-    return getattr(components, name, default)
-
-
-class SimulatorShell:
+class Simulator(Node):
     """The simulator node: parameters, publishers, the lockstep/real-time stepping and the status."""
 
     def __init__(self, argv: Sequence[str]):
-        from rclpy.clock import Clock, ClockType
-        from rclpy.node import Node
-
-        from bb2_msgs_py.contract import message_class, qos_profile
-
-        self.node = node = Node("simulator")
+        super().__init__("simulator")
+        node = self
         self._lock = threading.RLock()  # real time: the stepping thread vs the executor's callbacks
         self.scheduling = "normal"  # of the real-time stepping thread (status)
         self.cpu_latency = "not held"  # /dev/cpu_dma_latency (status)
         P = lambda *a: declare(node, *a)  # noqa: E731
         self.mission_file = P("mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
-        self.time_mode = require_choice("time_mode", P("time_mode", "lockstep",
-                                        "lockstep (wait for the controllers each step) | realtime (wall clock)"),
-                                        ("lockstep", "realtime"))
+        self.time_mode = TimeMode(require_choice("time_mode", P(
+            "time_mode", "lockstep", "lockstep (wait for the controllers each step) | realtime (wall clock)"),
+            [m.value for m in TimeMode]))
         self.rate_hz = require_positive("rate_hz", P("rate_hz", 20.0,
                                         "realtime: steps per wall second (20 = 1/Ts = real time)"))
         self.lockstep_timeout_s = require_positive("lockstep_timeout_s", P(
@@ -117,7 +115,6 @@ class SimulatorShell:
         self.startup_settle_s = require_positive("startup_settle_s", P(
             "startup_settle_s", 0.5, "lockstep: hold the first step this long after its first answer"),
             allow_zero=True)
-        self._first_answer_wall: float | None = None
         self.realtime_priority = int(P("realtime_priority", 50,
                                        "realtime: SCHED_FIFO priority (1-99) of the stepping thread; 0 = normal "
                                        "scheduling (refused by the OS: a warning, normal scheduling)"))
@@ -146,25 +143,27 @@ class SimulatorShell:
         strict = bool(P("strict_remaps", False, "a remap rule naming no topic of this node is an error"))
         check_remaps(node, argv, TOPICS_OUT + TOPICS_IN, strict=strict)
 
-        self.mission, comp = mission_pieces(self.mission_file)
-        self.sim = _piece(comp, "simulator")
-        self.stack = _piece(comp, "stack")
-        self.terrain = getattr(self.mission, "terrain", None)
-        if self.sim is None:
-            raise NodeConfigError("the mission factory returned no simulator")
-        act = self.sim.model.params.act
-        self.plane_limit_deg = float(act["plane_limit_deg"])
-        self.rps_limits = (float(act["rps_limits"][0]), float(act["rps_limits"][1]))
+        # this node's pieces only: the ROM at the mission's initial state and the stack's nominal propeller
+        self.mission = mission_only(self.mission_file)
+        self.sim = build_piece(self.mission, build_simulator)
+        self.terrain = self.mission.terrain
         self.g = float(self.sim.model.params.g)
         self.h = float(self.sim.h)
         if duration < 0:
-            duration = float(getattr(self.mission, "duration", math.inf))
+            duration = float(self.mission.duration)
         self.duration_s = duration
-        self.default_rps = float(self.stack.speed.step()) if self.stack is not None else 0.0
+        limits = CommandLimits.from_actuators(self.sim.model.params.act, plane_joints=PLANE_JOINTS,
+                                              propeller_joint=PROPELLER_JOINT, frame_id=FRAME_BASE_LINK)
+        self.gate = LockstepGate(
+            CommandValidator(limits, mode=self.time_mode, max_command_age_s=self.max_command_age_s, step_s=self.h),
+            GateTimings(lockstep_timeout_s=self.lockstep_timeout_s, lockstep_retry_s=self.lockstep_retry_s,
+                        startup_timeout_s=self.startup_timeout_s, startup_settle_s=self.startup_settle_s,
+                        command_timeout_s=self.command_timeout_s),
+            nominal_rps=build_piece(self.mission, nominal_rps))
+        self._failsafe_shown = False  # the failsafe state last logged / published
 
         # publishers / subscriptions (contract QoS)
         def pub(name):
-            from bb2_msgs_py.contract import topic
             return node.create_publisher(message_class(topic(name).type), name, qos_profile(name))
 
         self.pub = {n: pub(n) for n in TOPICS_OUT if n != "/bb2/altitude" or self.terrain is not None}
@@ -173,22 +172,12 @@ class SimulatorShell:
         self.sub_prop = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/propeller/cmd",
                                                  self._locked(self._on_propeller), qos_profile("/bb2/propeller/cmd"))
         self.warn = Throttle(node.get_logger(), throttle_s)
-        self.counters = {k: 0 for k in ("rejected_nonfinite", "rejected_names", "rejected_frame", "rejected_stale",
-                                        "rejected_future", "clamped", "late_commands", "lockstep_timeouts",
-                                        "lockstep_resends", "failsafe_steps", "overruns")}
+        self.overruns = 0  # real time: steps later than a whole period (the stepping thread's own count)
         self._csv_fh = open(csv_path, "w", newline="") if csv_path else None
         self._csv = csv.writer(self._csv_fh) if self._csv_fh else None
         if self._csv:
             self._csv.writerow(["t", "x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r"])
 
-        # command memory: last valid values and when they arrived (wall monotonic) / their stamps (ns)
-        self.planes_deg: np.ndarray | None = None
-        self.rps: float | None = None
-        self.planes_wall = self.rps_wall = -math.inf
-        self._ans_planes: np.ndarray | None = None  # answers for the step being awaited (lockstep)
-        self._ans_rps: float | None = None
-        self.failsafe = False
-        self.failsafe_reason = ""
         self.finished = False
         self.diverged = ""
         self.done = False
@@ -201,17 +190,16 @@ class SimulatorShell:
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.status_timer = node.create_timer(self.status_period_s, self._locked(self._publish_status), clock=steady)
         self.started = False
-        self._sent_wall = self._first_sent_wall = time.monotonic()
         self.start_timer = node.create_timer(0.02, self._locked(self._start), clock=steady)
-        if self.time_mode == "lockstep":
+        if self.time_mode is TimeMode.LOCKSTEP:
             self.watchdog = node.create_timer(min(0.01, self.lockstep_retry_s / 2), self._watchdog, clock=steady)
         else:  # a thread of its own, on absolute wall deadlines (not an executor timer: no callback queue ahead)
             self._rt_stop = threading.Event()
             self._rt_thread = threading.Thread(target=self._realtime_loop, name="bb2-sim-realtime", daemon=True)
             self._rt_thread.start()
         node.get_logger().info(
-            f"simulator up: mission {self.mission_file}, {self.time_mode}"
-            + (f" at {self.rate_hz:g} Hz" if self.time_mode == "realtime" else "")
+            f"simulator up: mission {self.mission_file}, {self.time_mode.value}"
+            + (f" at {self.rate_hz:g} Hz" if self.time_mode is TimeMode.REALTIME else "")
             + f", Ts = {self.h:g} s, duration {self.duration_s:g} s")
 
     def _locked(self, fn):
@@ -229,86 +217,22 @@ class SimulatorShell:
         return cv.seconds_to_ns(self.sim.t)
 
     # ------------------------------------------------------------------------------------ commands
-    def _check_header(self, msg, what: str) -> bool:
-        if msg.header.frame_id != FRAME_BASE_LINK:
-            self.counters["rejected_frame"] += 1
-            self.warn.warn(f"frame_{what}", f"rejected {what} command: frame_id {msg.header.frame_id!r}, "
-                                            f"expected {FRAME_BASE_LINK!r}")
-            return False
-        st, now = cv.stamp_to_ns(msg.header.stamp), self._t_ns()
-        if self.time_mode == "lockstep":
-            if st < now:
-                self.counters["late_commands"] += 1  # an answer to an earlier (resent/timed-out) step
-                return False
-            if st > now:
-                self.counters["rejected_future"] += 1
-                self.warn.warn(f"future_{what}", f"rejected {what} command stamped {st * 1e-9:.3f} s: "
-                                                 f"ahead of the sim time {now * 1e-9:.3f} s")
-                return False
-            return True
-        if st < now - int(self.max_command_age_s * 1e9):
-            self.counters["rejected_stale"] += 1
-            self.warn.warn(f"stale_{what}", f"rejected stale {what} command stamped {st * 1e-9:.3f} s "
-                                            f"(sim time {now * 1e-9:.3f} s, max age {self.max_command_age_s} s)")
-            return False
-        if st > now + int(self.h * 1e9):
-            self.counters["rejected_future"] += 1
-            self.warn.warn(f"future_{what}", f"rejected {what} command stamped {st * 1e-9:.3f} s: "
-                                             f"ahead of the sim time {now * 1e-9:.3f} s")
-            return False
-        return True
+    def _say(self, verdict: Verdict) -> None:
+        if verdict.message:
+            self.warn.warn(verdict.key, verdict.message)
 
     def _on_planes(self, msg) -> None:
-        try:
-            if len(msg.name) != len(PLANE_JOINTS) or len(set(msg.name)) != len(msg.name):
-                raise cv.ConversionError(f"expected the {len(PLANE_JOINTS)} joints {list(PLANE_JOINTS)}, "
-                                      f"got {list(msg.name)}")
-            rad = cv.planes_from_message(msg)
-        except cv.ConversionError as exc:
-            self.counters["rejected_names"] += 1
-            self.warn.warn("names_planes", f"rejected plane command: {exc}")
-            return
-        if not np.all(np.isfinite(rad)):
-            self.counters["rejected_nonfinite"] += 1
-            self.warn.warn("nonfinite_planes", f"rejected non-finite plane command {rad.tolist()} (never integrated)")
-            return
-        if not self._check_header(msg, "plane"):
-            return
-        deg = np.degrees(rad)
-        if np.any(np.abs(deg) > self.plane_limit_deg):
-            self.counters["clamped"] += 1
-            self.warn.warn("clamp_planes", f"plane command {np.round(deg, 3).tolist()} deg beyond "
-                                           f"+-{self.plane_limit_deg:g} deg: clamped")
-            deg = np.clip(deg, -self.plane_limit_deg, self.plane_limit_deg)
-        self.planes_deg, self.planes_wall = deg, time.monotonic()
-        if self.time_mode == "lockstep":
-            self._ans_planes = deg
+        v = self.gate.on_planes(msg.name, msg.position, msg.header.frame_id, cv.stamp_to_ns(msg.header.stamp),
+                                self._t_ns(), time.monotonic())
+        self._say(v)
+        if v.accepted and self.time_mode is TimeMode.LOCKSTEP:
             self._maybe_advance()
 
     def _on_propeller(self, msg) -> None:
-        try:
-            if list(msg.name) != [PROPELLER_JOINT]:
-                raise cv.ConversionError(f"expected the joint [{PROPELLER_JOINT!r}], got {list(msg.name)}")
-            omega = cv.propeller_from_message(msg)
-        except cv.ConversionError as exc:
-            self.counters["rejected_names"] += 1
-            self.warn.warn("names_prop", f"rejected propeller command: {exc}")
-            return
-        if not math.isfinite(omega):
-            self.counters["rejected_nonfinite"] += 1
-            self.warn.warn("nonfinite_prop", f"rejected non-finite propeller command {omega} (never integrated)")
-            return
-        if not self._check_header(msg, "propeller"):
-            return
-        rps = omega / TWO_PI
-        lo, hi = self.rps_limits
-        if not lo <= rps <= hi:
-            self.counters["clamped"] += 1
-            self.warn.warn("clamp_prop", f"propeller command {rps:.4g} rps outside [{lo:g}, {hi:g}]: clamped")
-            rps = min(max(rps, lo), hi)
-        self.rps, self.rps_wall = rps, time.monotonic()
-        if self.time_mode == "lockstep":
-            self._ans_rps = rps
+        v = self.gate.on_propeller(msg.name, msg.velocity, msg.header.frame_id, cv.stamp_to_ns(msg.header.stamp),
+                                   self._t_ns(), time.monotonic())
+        self._say(v)
+        if v.accepted and self.time_mode is TimeMode.LOCKSTEP:
             self._maybe_advance()
 
     # ------------------------------------------------------------------------------------ stepping
@@ -316,23 +240,25 @@ class SimulatorShell:
         return not (self.finished or self.diverged)
 
     def _maybe_advance(self) -> None:
-        if self._ans_planes is not None and self._ans_rps is not None and self._stepping():
-            if self.sim.n == 0 and self.startup_settle_s > 0:  # let late endpoint matches settle (replays)
-                now = time.monotonic()
-                if self._first_answer_wall is None:
-                    self._first_answer_wall = now
-                if now - self._first_answer_wall < self.startup_settle_s:
-                    self._ans_planes = self._ans_rps = None  # wait for the answers to the next re-send
-                    return
-            planes, rps = self._ans_planes, self._ans_rps
-            self._set_failsafe(False, "")
-            self._advance(planes, rps)
+        if self._stepping():
+            decision = self.gate.answer(self.sim.n, time.monotonic())
+            if decision is not None:
+                self._step(decision)
+
+    def _step(self, d: StepDecision) -> None:
+        """Step with the gate's decision; a failsafe engaged or released is logged and published once."""
+        if d.failsafe != self._failsafe_shown:
+            self._failsafe_shown = d.failsafe
+            if not d.failsafe:
+                self.get_logger().info("failsafe released: valid commands again")
+            self._publish_status()
+        self._advance(d.planes_deg, d.rps)
 
     def _start(self) -> None:
         """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
         after ``startup_timeout_s``), so that a recorder or a test started with the graph misses nothing."""
-        n = self.node.count_subscribers("/bb2/state_native")
-        unread = [t for t in self.pub if self.node.count_subscribers(t) == 0] if self.wait_for_readers else []
+        n = self.count_subscribers("/bb2/state_native")
+        unread = [t for t in self.pub if self.count_subscribers(t) == 0] if self.wait_for_readers else []
         now = time.monotonic()
         if self.wait_for_readers and not unread:  # every topic read: let the readers' side match too
             self._readers_since = self._readers_since or now
@@ -357,38 +283,16 @@ class SimulatorShell:
     def _watchdog(self) -> None:
         if not self._stepping() or not self.started:
             return
-        now = time.monotonic()
-        timeout = self.startup_timeout_s if self.sim.n == 0 else self.lockstep_timeout_s
-        if now - self._first_sent_wall > timeout:
-            self.counters["lockstep_timeouts"] += 1
-            planes, rps, why = self._held_commands(now, lockstep=True)
-            self.warn.warn("lockstep_timeout", f"no answer to step t = {self.t:.3f} s within {timeout:g} s: "
-                                               f"stepping with {why}")
-            self._set_failsafe(True, f"lockstep timeout: {why}")
-            self._advance(planes, rps)
-        elif now - self._sent_wall > self.lockstep_retry_s:
-            self.counters["lockstep_resends"] += 1
+        action, decision = self.gate.watchdog(self.sim.n, time.monotonic())
+        if action is WatchdogAction.STEP:
+            why = decision.reason.removeprefix("lockstep timeout: ")
+            self.warn.warn("lockstep_timeout", f"no answer to step t = {self.t:.3f} s within "
+                                               f"{self.gate.timeout_s(self.sim.n):g} s: stepping with {why}")
+            self._step(decision)
+        elif action is WatchdogAction.RESEND:
             self.pub["/bb2/state_native"].publish(self._state_native_msg)
             if self._odom_msg is not None and self._odom_msg.header.stamp == self._state_stamp:
                 self.pub["/bb2/odom"].publish(self._odom_msg)  # for controllers on state_source odometry
-            self._sent_wall = now
-
-    def _held_commands(self, now: float, *, lockstep: bool) -> tuple[np.ndarray, float, str]:
-        """Commands for a step without fresh ones: last valid planes/propeller, else the safe default."""
-        fresh_planes = self.planes_deg is not None and (lockstep or now - self.planes_wall <= self.command_timeout_s)
-        if self._ans_planes is not None:
-            planes, pw = self._ans_planes, "this step's planes"
-        elif fresh_planes:
-            planes, pw = self.planes_deg, "last valid planes"
-        else:
-            planes, pw = np.zeros(5), "neutral planes"
-        if self._ans_rps is not None:
-            rps, rw = self._ans_rps, "this step's propeller"
-        elif self.rps is not None:
-            rps, rw = self.rps, "propeller held"
-        else:
-            rps, rw = self.default_rps, "nominal propeller"
-        return planes, rps, f"{pw}, {rw}"
 
     def _realtime_loop(self) -> None:
         """Real time: step at ``rate_hz`` on absolute monotonic deadlines (sleeps to the next deadline; a
@@ -397,10 +301,10 @@ class SimulatorShell:
             try:
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.realtime_priority))  # this thread
                 self.scheduling = f"SCHED_FIFO {self.realtime_priority}"
-                self.node.get_logger().info(f"stepping thread: SCHED_FIFO priority {self.realtime_priority}")
+                self.get_logger().info(f"stepping thread: SCHED_FIFO priority {self.realtime_priority}")
             except (OSError, AttributeError) as exc:
                 self.scheduling = f"normal (SCHED_FIFO {self.realtime_priority} refused: {exc})"
-                self.node.get_logger().warning(f"realtime_priority {self.realtime_priority} refused ({exc}): "
+                self.get_logger().warning(f"realtime_priority {self.realtime_priority} refused ({exc}): "
                                                "stepping with normal scheduling")
         if self.hold_cpu_dma_latency:
             self._hold_cpu_dma_latency()
@@ -434,7 +338,7 @@ class SimulatorShell:
                 except Exception as exc:  # never a silent dead stepping thread: the node exits 1, says why
                     self.diverged = self.diverged or f"stepping thread failed: {type(exc).__name__}: {exc}"
                     self.exit_code = 1
-                    self.node.get_logger().error(self.diverged)
+                    self.get_logger().error(self.diverged)
                     self.done = True
                     return
 
@@ -447,7 +351,7 @@ class SimulatorShell:
         except OSError as exc:
             self._dma_fd = None
             self.cpu_latency = f"not held ({exc.strerror})"
-            self.node.get_logger().warning(f"/dev/cpu_dma_latency: {exc.strerror}: idle cores keep their "
+            self.get_logger().warning(f"/dev/cpu_dma_latency: {exc.strerror}: idle cores keep their "
                                            "wake-up latency")
 
     def _tick(self, period: float) -> None:
@@ -456,37 +360,16 @@ class SimulatorShell:
             return
         now = time.monotonic()
         if now - self._next_tick > period:
-            self.counters["overruns"] += 1
+            self.overruns += 1
             self._next_tick = now
         self._next_tick += period
-        planes_ok = self.planes_deg is not None and now - self.planes_wall <= self.command_timeout_s
-        rps_ok = self.rps is not None and now - self.rps_wall <= self.command_timeout_s
-        if planes_ok and rps_ok:
-            self._set_failsafe(False, "")
-            self._advance(self.planes_deg, self.rps)
-            return
-        planes = self.planes_deg if planes_ok else np.zeros(5)
-        rps = self.rps if self.rps is not None else self.default_rps
-        missing = [w for w, ok in (("plane", planes_ok), ("propeller", rps_ok)) if not ok]
-        why = (f"no valid {' and '.join(missing)} command for {self.command_timeout_s:g} s: "
-               + ("planes neutral" if not planes_ok else "planes held") + ", propeller "
-               + ("held" if self.rps is not None else f"nominal {self.default_rps:.4g} rps"))
-        self.warn.warn("failsafe", f"failsafe: {why}")
-        self._set_failsafe(True, why)
-        self._advance(planes, rps)
-
-    def _set_failsafe(self, on: bool, why: str) -> None:
-        changed = on != self.failsafe
-        self.failsafe, self.failsafe_reason = on, why
-        if on:
-            self.counters["failsafe_steps"] += 1
-        if changed:
-            if not on:
-                self.node.get_logger().info("failsafe released: valid commands again")
-            self._publish_status()
+        decision = self.gate.realtime_commands(now)
+        if decision.failsafe:
+            self.warn.warn("failsafe", f"failsafe: {decision.reason}")
+        self._step(decision)
 
     def _advance(self, planes_deg: np.ndarray, rps: float) -> None:
-        self._ans_planes = self._ans_rps = None
+        self.gate.stepped()
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
         # /clock goes to t_n+1 now, before the integration: the nodes on sim time (every controller) take it
         # while the ROM steps, not when the state of t_n+1 comes and they must answer it (recorders log the
@@ -497,7 +380,7 @@ class SimulatorShell:
         except (NonFiniteStateError, ValueError) as exc:
             self.diverged = str(exc)
             self.exit_code = 1
-            self.node.get_logger().error(f"simulation stopped: {exc}")
+            self.get_logger().error(f"simulation stopped: {exc}")
             self._publish_status()
             self.done = self.exit_at_end
             return
@@ -513,7 +396,7 @@ class SimulatorShell:
             self._publish_trigger(clock=False)
             self._publish_sensors()
             self.finished = True
-            self.node.get_logger().info(f"mission duration reached at t = {self.t:.3f} s")
+            self.get_logger().info(f"mission duration reached at t = {self.t:.3f} s")
             self._publish_status()
             self.done = self.exit_at_end
             return
@@ -533,7 +416,7 @@ class SimulatorShell:
         self._state_native_msg = cv.state_native_message(state)
         self._state_stamp = cv.stamp(state.t)
         self.pub["/bb2/state_native"].publish(self._state_native_msg)
-        self._sent_wall = self._first_sent_wall = time.monotonic()
+        self.gate.state_sent(time.monotonic())
 
     def _publish_sensors(self) -> None:
         """Odometry, depth and altitude of the current step."""
@@ -557,17 +440,19 @@ class SimulatorShell:
             self._rate_measured = (self.sim.n - self._steps_at_status) / dt
             self._steps_at_status, self._wall_at_status = self.sim.n, now
         state = "diverged" if self.diverged else "finished" if self.finished else "running"
-        vals = {"mode": self.time_mode, "state": state, "sim_time_s": f"{self.t:.6f}", "step": str(self.sim.n),
-                "failsafe": str(self.failsafe).lower(), "failsafe_reason": self.failsafe_reason,
-                "rate_hz": f"{self.rate_hz:g}" if self.time_mode == "realtime" else "as fast as the graph",
-                "scheduling": self.scheduling if self.time_mode == "realtime" else "executor (lockstep)",
+        realtime = self.time_mode is TimeMode.REALTIME
+        vals = {"mode": self.time_mode.value, "state": state, "sim_time_s": f"{self.t:.6f}", "step": str(self.sim.n),
+                "failsafe": str(self.gate.failsafe).lower(), "failsafe_reason": self.gate.failsafe_reason,
+                "rate_hz": f"{self.rate_hz:g}" if realtime else "as fast as the graph",
+                "scheduling": self.scheduling if realtime else "executor (lockstep)",
                 "cpu_dma_latency": self.cpu_latency,
                 "step_rate_hz": f"{self._rate_measured:.2f}",
                 "real_time_factor": f"{self._rate_measured * self.h:.3f}",
                 "duration_s": f"{self.duration_s:g}", "mission_file": self.mission_file}
         if self.diverged:
             vals["error"] = self.diverged
-        vals.update({k: str(v) for k, v in self.counters.items()})
+        vals.update({k: str(v) for k, v in self.gate.counters.items()})
+        vals["overruns"] = str(self.overruns)
         return vals
 
     def _publish_status(self) -> None:
@@ -576,10 +461,11 @@ class SimulatorShell:
         from bb2_msgs_py.conversions import stamp
 
         vals = self.status_values()
-        level = (DiagnosticStatus.ERROR if self.diverged else DiagnosticStatus.WARN if self.failsafe
+        failsafe = self.gate.failsafe
+        level = (DiagnosticStatus.ERROR if self.diverged else DiagnosticStatus.WARN if failsafe
                  else DiagnosticStatus.OK)
-        msg_text = (f"diverged: {self.diverged}" if self.diverged else
-                    f"FAILSAFE: {self.failsafe_reason}" if self.failsafe else f"{vals['state']}, {self.time_mode}")
+        msg_text = (f"diverged: {self.diverged}" if self.diverged else f"FAILSAFE: {self.gate.failsafe_reason}"
+                    if failsafe else f"{vals['state']}, {self.time_mode.value}")
         st = DiagnosticStatus(level=level, name="bb2/simulator", message=msg_text, hardware_id="bb2_rom",
                               values=[KeyValue(key=k, value=v) for k, v in vals.items()])
         from std_msgs.msg import Header
@@ -597,8 +483,8 @@ class SimulatorShell:
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    """Entry point (``ros2 run bb2_sim simulator``)."""
-    return run_node("simulator", SimulatorShell, args)
+    """Entry point (``ros2 run bb2_ros simulator``)."""
+    return run_node("simulator", Simulator, args)
 
 
 if __name__ == "__main__":

@@ -68,7 +68,6 @@ ODOM = "/bb2/odom"
 STATUS = "/bb2/status"
 PAUSE_SERVICE = "/bb2_replay/pause"
 NODE_NAME = "bb2_replay"
-TWO_PI = 2.0 * math.pi
 
 
 class ReplayError(ValueError):
@@ -373,50 +372,29 @@ def _stamp_ns(msg) -> int:
 
 
 class _CommandFilter:
-    """The simulator node's command validation, for recorded commands (see bb2_ros.simulator)."""
+    """The simulator node's command validation (the lockstep gate's :class:`CommandValidator`) applied to
+    recorded commands, with the counts of what it rejected and clamped (no stamp check: a recording's
+    stamps are what they were)."""
 
-    def __init__(self, plane_limit_deg: float, rps_limits: tuple[float, float]):
-        self.plane_limit_deg, self.rps_limits = float(plane_limit_deg), rps_limits
+    def __init__(self, validator):  # a bb2_mission.lockstep_gate.CommandValidator
+        self.validator = validator
         self.rejected = self.clamped = 0
 
-    def planes_deg(self, msg) -> np.ndarray | None:
-        from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS
-        from bb2_msgs_py.conversions import ConversionError, planes_from_message
-
-        try:
-            if len(msg.name) != len(PLANE_JOINTS) or len(set(msg.name)) != len(msg.name):
-                raise ConversionError("joints")
-            rad = planes_from_message(msg)
-        except ConversionError:
-            rad = None
-        if rad is None or not np.all(np.isfinite(rad)) or msg.header.frame_id != FRAME_BASE_LINK:
-            self.rejected += 1
-            return None
-        deg = np.degrees(rad)
-        if np.any(np.abs(deg) > self.plane_limit_deg):
+    def _count(self, v) -> None:
+        if v.clamped:
             self.clamped += 1
-            deg = np.clip(deg, -self.plane_limit_deg, self.plane_limit_deg)
-        return deg
+        elif not v.accepted:
+            self.rejected += 1
+
+    def planes_deg(self, msg) -> np.ndarray | None:
+        v = self.validator.planes(msg.name, msg.position, msg.header.frame_id)
+        self._count(v)
+        return v.value
 
     def rps(self, msg) -> float | None:
-        from bb2_msgs_py.contract import FRAME_BASE_LINK, PROPELLER_JOINT
-        from bb2_msgs_py.conversions import ConversionError, propeller_from_message
-
-        try:
-            if list(msg.name) != [PROPELLER_JOINT]:
-                raise ConversionError("joints")
-            omega = propeller_from_message(msg)
-        except ConversionError:
-            omega = math.nan
-        if not math.isfinite(omega) or msg.header.frame_id != FRAME_BASE_LINK:
-            self.rejected += 1
-            return None
-        rps = omega / TWO_PI
-        lo, hi = self.rps_limits
-        if not lo <= rps <= hi:
-            self.clamped += 1
-            rps = min(max(rps, lo), hi)
-        return rps
+        v = self.validator.propeller(msg.name, msg.velocity, msg.header.frame_id)
+        self._count(v)
+        return v.value
 
 
 def _mission_from_status(reader: BagReader) -> str | None:
@@ -443,9 +421,11 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
     steps while recorded states remain; deviations are taken at stamps ``>= start_offset_s`` after the
     first recorded state.
     """
+    from bb2_mission import build_simulator, load_mission, nominal_rps
+    from bb2_mission.lockstep_gate import CommandLimits, CommandValidator
     from bb2_msgs_py import conversions as cv
+    from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT
     from bb2_sim.integrator import NonFiniteStateError
-    from bb2_mission import load_mission, mission_components
 
     reader = bag if isinstance(bag, BagReader) else BagReader(bag)
     notes: list[str] = []
@@ -470,11 +450,10 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
         mission = load_mission(mission_file)
     except (ValueError, OSError) as exc:
         raise ReplayError(f"mission {mission_file}: {exc}") from None
-    comp = mission_components(mission)
-    sim, stack = comp.simulator, comp.stack
-    act = sim.model.params.act
-    filt = _CommandFilter(act["plane_limit_deg"], (float(act["rps_limits"][0]), float(act["rps_limits"][1])))
-    default_rps = float(stack.speed.step()) if stack is not None else 0.0
+    sim = build_simulator(mission)
+    filt = _CommandFilter(CommandValidator(CommandLimits.from_actuators(
+        sim.model.params.act, plane_joints=PLANE_JOINTS, propeller_joint=PROPELLER_JOINT, frame_id=FRAME_BASE_LINK)))
+    default_rps = nominal_rps(mission)
 
     planes: dict[int, np.ndarray] = {}
     props: dict[int, float] = {}

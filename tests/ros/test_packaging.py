@@ -154,12 +154,35 @@ def test_every_imported_bb2_package_is_declared_and_below(pkg):
     assert declared <= below, f"declared above its layer: {sorted(declared - below)}"
 
 
+def _code_names(pkg: str) -> str:
+    """What the code of ``pkg`` names: its imports and its string constants ("nav_msgs/msg/Odometry" for
+    message_class), not its docstrings (a docstring mentioning a message package is no dependency)."""
+    import ast
+
+    out = []
+    for p in (REPO / pkg).rglob("*.py"):
+        if "__pycache__" in p.parts:
+            continue
+        tree = ast.parse(p.read_text())
+        docs = {id(n.body[0].value) for n in ast.walk(tree)
+                if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and n.body
+                and isinstance(n.body[0], ast.Expr) and isinstance(n.body[0].value, ast.Constant)}
+        for n in ast.walk(tree):
+            if isinstance(n, ast.Import):
+                out += [a.name for a in n.names]
+            elif isinstance(n, ast.ImportFrom) and n.module:
+                out.append(n.module)
+            elif isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in docs:
+                out.append(n.value)
+    return "\n".join(out)
+
+
 @pytest.mark.parametrize("pkg", PACKAGES)
 def test_every_imported_ros_and_python_dependency_is_declared(pkg):
     declared = exec_deps(pkg)
     text = "\n".join(p.read_text() for p in (REPO / pkg).rglob("*.py") if "__pycache__" not in p.parts)
     code = "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#"))
-    used_ros = set(ROS_PY_PACKAGES.findall(code)) - {"bb2_msgs"}
+    used_ros = set(ROS_PY_PACKAGES.findall(_code_names(pkg))) - {"bb2_msgs"}
     used_ros = {u for u in used_ros if importlib.util.find_spec(u) is not None}  # real ROS packages only
     assert used_ros - {"tf2_msgs"} <= declared, f"undeclared: {sorted(used_ros - declared)}"
     used_py = set(re.findall(r"^\s*(?:from|import)\s+(\w+)", code, re.M)) & set(PY_KEYS)
