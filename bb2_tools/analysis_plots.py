@@ -1,6 +1,6 @@
 """Paper-style figures of analysed bags (matplotlib, Agg canvas, one PNG each), one run or two overlaid.
 
-Inputs are :class:`bb2_tools.analyze.Analysis` objects.  Positions are in the native earth frame
+Inputs are :class:`bb2_tools.analysis.Analysis` objects.  Positions are in the native earth frame
 (x, y horizontal, z up, m); depth is -z; angles are plotted in degrees.  Figures (:data:`FIGURES`):
 
 * ``track_3d``        path vs track(s) in 3-D;

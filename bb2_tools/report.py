@@ -3,7 +3,7 @@
 The file references nothing outside itself (no scripts, no stylesheets, no remote images): every
 image is a ``data:image/png;base64,...`` URI and the style sheet is inline, so it can be mailed or
 attached to a ticket as is.  :func:`html_page` is the generic builder; :func:`write_analysis_report`
-lays out the figures of one or two :class:`bb2_tools.analyze.Analysis` runs.
+lays out the figures of one or two :class:`bb2_tools.analysis.Analysis` runs.
 """
 from __future__ import annotations
 
@@ -13,6 +13,8 @@ import math
 import time
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
+
+from bb2_tools.analysis import Analysis, compare, format_figure
 
 __all__ = ["png_data_uri", "image_html", "table_html", "html_page", "write_analysis_report", "PNG_SIGNATURE"]
 
@@ -95,11 +97,9 @@ KEY_FIGURES = ("mission_time_s", "rms_vertical_m", "max_vertical_m", "rms_horizo
                "real_time_factor")
 
 
-def _figures_table(analyses: Sequence[Any], names: Sequence[str]) -> str:
-    from bb2_tools.analyze import compare, format_figure
-
+def _figures_table(analyses: Sequence[Analysis], names: Sequence[str]) -> str:
     if len(analyses) == 1:
-        f = analyses[0].figures
+        f = analyses[0].named_figures
         rows = [list(format_figure(k, f[k])) for k in names if k in f]
         return table_html(["figure", "value", "unit"], rows)
     diffs = {k: (va, vb, d) for k, va, vb, d in compare(analyses[0], analyses[1])}
@@ -111,7 +111,7 @@ def _figures_table(analyses: Sequence[Any], names: Sequence[str]) -> str:
     return table_html(["figure", f"A: {analyses[0].label}", f"B: {analyses[1].label}", "B - A", "unit"], rows)
 
 
-def _topics_table(analyses: Sequence[Any]) -> str:
+def _topics_table(analyses: Sequence[Analysis]) -> str:
     names = sorted({t for a in analyses for t in a.run.topics})
     header = ["topic", "type"] + [f"messages ({a.label})" for a in analyses]
     rows = []
@@ -121,7 +121,7 @@ def _topics_table(analyses: Sequence[Any]) -> str:
     return table_html(header, rows, name_columns=2)
 
 
-def write_analysis_report(analyses: Sequence[Any], files: Mapping[str, Path], out_file: str | Path) -> Path:
+def write_analysis_report(analyses: Sequence[Analysis], files: Mapping[str, Path], out_file: str | Path) -> Path:
     """Write the HTML report of one or two analyses with the PNG ``files`` embedded; returns the file."""
     out = Path(out_file)
     sections: list[tuple[str, str]] = []
@@ -144,7 +144,8 @@ def write_analysis_report(analyses: Sequence[Any], files: Mapping[str, Path], ou
             warn_html.append(f'<div class="warn">{html.escape(a.label)}: {html.escape(w)}</div>')
     sections.append(("Warnings", "".join(warn_html) or '<div class="ok">none</div>'))
 
-    key = [k for k in KEY_FIGURES if any(k in a.figures for a in analyses)]
+    named = [a.named_figures for a in analyses]
+    key = [k for k in KEY_FIGURES if any(k in f for f in named)]
     sections.append(("Key figures", _figures_table(analyses, key)))
     plots = [image_html(files[name], FIGURE_CAPTIONS.get(name, name), alt=name)
              for name in ("path_errors", "track_3d", "plan_view", "commands", "rate_commands", "speed_depth_fpa",
@@ -155,7 +156,7 @@ def write_analysis_report(analyses: Sequence[Any], files: Mapping[str, Path], ou
             rows = [[lab, _fmt_any(v), unit] for lab, v, unit in a.maneuver_figures.as_rows()]
             sections.append((f"Maneuver figures ({a.maneuver}, {a.label})",
                              table_html(["figure", "value", "unit"], rows)))
-    all_names = list(dict.fromkeys(k for a in analyses for k in a.figures))
+    all_names = list(dict.fromkeys(k for f in named for k in f))
     sections.append(("All figures" if len(analyses) == 1 else "All figures (A vs B)",
                      _figures_table(analyses, all_names)))
     sections.append(("Topics", _topics_table(analyses)))

@@ -29,6 +29,8 @@ from rclpy.serialization import serialize_message  # noqa: E402
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import topic  # noqa: E402
 from bb2_tools import analyze as an  # noqa: E402
+from bb2_tools.analysis import analyze  # noqa: E402
+from bb2_tools.bag_run import read_bag  # noqa: E402
 from bb2_tools.bagfile import BagWriter, qos_entry  # noqa: E402
 from bb2_mission import MissionRunner, load_mission  # noqa: E402
 from bb2_tools.recorder import tf_from_odometry  # noqa: E402
@@ -160,23 +162,34 @@ def _summary_of(runner, traj):
 def test_path_errors_equal_runner(bags):
     bag, runner, traj = bags["circle"]
     s = _summary_of(runner, traj)
-    a = an.analyze(an.read_bag(bag))
+    a = analyze(read_bag(bag))
     f = a.figures
     assert a.run.state_source == "state_native" and a.run.path_source == "/bb2/path/bernstein"
-    assert int(f["ticks"]) == len(traj["t_s"])  # the final state (answered by the graph) is not a tick
-    for k in ("rms_vertical_m", "max_vertical_m", "rms_horizontal_m", "max_horizontal_m",
-              "rms_vertical_closest_m", "max_vertical_closest_m", "rms_horizontal_closest_m",
-              "max_horizontal_closest_m", "mission_time_s"):
-        assert abs(f[k] - getattr(s, k)) <= 1e-9, (k, f[k], getattr(s, k))
+    assert f.times.ticks == len(traj["t_s"])  # the final state (answered by the graph) is not a tick
+    pe, pc = f.path_error, f.path_error_closest
+    for k, v in (("rms_vertical_m", pe.rms_vertical_m), ("max_vertical_m", pe.max_vertical_m),
+                 ("rms_horizontal_m", pe.rms_horizontal_m), ("max_horizontal_m", pe.max_horizontal_m),
+                 ("rms_vertical_closest_m", pc.rms_vertical_m), ("max_vertical_closest_m", pc.max_vertical_m),
+                 ("rms_horizontal_closest_m", pc.rms_horizontal_m),
+                 ("max_horizontal_closest_m", pc.max_horizontal_m), ("mission_time_s", f.times.mission_time_s)):
+        assert abs(v - getattr(s, k)) <= 1e-9, (k, v, getattr(s, k))
     np.testing.assert_allclose(a.e_vertical, traj["e_vertical_m"], rtol=0, atol=1e-12)
     np.testing.assert_array_equal(a.run.x[:-1, 0], traj["x_m"])
     # command statistics from the same samples
-    assert f["dV_max_abs_rad"] == pytest.approx(np.max(np.abs(np.radians(traj["dV_deg"]))), abs=1e-12)
-    assert f["planes_cmd_max_abs_rad"] == pytest.approx(
+    assert f.commands.dV.unit == "rad"
+    assert f.commands.dV.max_abs == pytest.approx(np.max(np.abs(np.radians(traj["dV_deg"]))), abs=1e-12)
+    assert f.commands.planes_cmd.max_abs_rad == pytest.approx(
         np.max(np.abs(np.radians([traj[f"cmd_d{i}_deg"] for i in range(1, 6)]))), abs=1e-12)
-    assert 0.0 <= f["planes_any_saturated_fraction"] <= 1.0
-    assert math.isfinite(f["real_time_factor"]) and f["real_time_factor"] > 0
-    assert "min_clearance_m" not in f  # circle: no terrain, no altimeter
+    assert 0.0 <= f.commands.planes.any_saturated_fraction <= 1.0
+    assert math.isfinite(f.real_time_factor) and f.real_time_factor > 0
+    assert f.clearance.min_clearance_m is None and f.clearance.min_altitude_m is None  # circle: no terrain
+    # the named figures (printed, figures.json) are these records flattened, in a fixed order
+    named = a.named_figures
+    assert list(named)[:5] == ["mission_time_s", "recorded_time_s", "ticks", "rms_vertical_m", "max_vertical_m"]
+    assert named["ticks"] == f.times.ticks and named["rms_horizontal_closest_m"] == pc.rms_horizontal_m
+    assert named["planes_cmd_d3_max_abs_rad"] == f.commands.planes_cmd.max_abs_each_rad[2]
+    assert named["dH_max_abs_rate_rad_s"] == f.commands.dH.max_abs_rate
+    assert "min_clearance_m" not in named and list(named)[-1] == "real_time_factor"
 
 
 def test_analysis_ends_where_the_mission_finished(bags):
@@ -185,14 +198,14 @@ def test_analysis_ends_where_the_mission_finished(bags):
     bag_a, runner_a, traj_a = bags["circle"]  # ended by its 40 s duration: last tick t = 39.95 s
     longer = _short("circle", 46.0)
     bag_b, _, _ = write_mission_bag(longer, bags["root"] / "circle_past_finish", progress_one_at=39.95)
-    a = an.analyze(an.read_bag(bag_a))
-    b = an.analyze(an.read_bag(bag_b))
-    assert int(b.figures["ticks"]) == int(a.figures["ticks"]) == len(traj_a["t_s"])
-    for k in ("rms_vertical_m", "max_vertical_m", "rms_horizontal_m", "max_horizontal_m", "mission_time_s",
-              "rms_vertical_closest_m"):
-        assert b.figures[k] == a.figures[k], k
-    assert b.figures["mission_time_s"] == pytest.approx(40.0)
-    assert b.figures["recorded_time_s"] == pytest.approx(46.0)
+    a = analyze(read_bag(bag_a))
+    b = analyze(read_bag(bag_b))
+    assert b.figures.times.ticks == a.figures.times.ticks == len(traj_a["t_s"])
+    assert b.figures.path_error == a.figures.path_error  # rms/max, vertical/horizontal
+    assert b.figures.times.mission_time_s == a.figures.times.mission_time_s
+    assert b.figures.path_error_closest.rms_vertical_m == a.figures.path_error_closest.rms_vertical_m
+    assert b.figures.times.mission_time_s == pytest.approx(40.0)
+    assert b.figures.times.recorded_time_s == pytest.approx(46.0)
     assert any("finished at t = 39.95 s" in w and "not analysed" in w for w in b.warnings)
     assert not any("finished at" in w for w in a.warnings)
 
@@ -200,31 +213,32 @@ def test_analysis_ends_where_the_mission_finished(bags):
 def test_odometry_only_bag(bags):
     """Without /bb2/state_native and the Bernstein path: odometry back to native, the sampled path."""
     bag, runner, traj = bags["circle_odom"]
-    a = an.analyze(an.read_bag(bag))
+    a = analyze(read_bag(bag))
     assert a.run.state_source == "odometry" and a.run.path_source == "/bb2/path"
     np.testing.assert_allclose(a.run.x[:-1, 0:3], np.c_[traj["x_m"], traj["y_m"], traj["z_m"]], atol=1e-9)
     np.testing.assert_allclose(np.degrees(a.run.x[:-1, 5]), traj["psi_deg"], atol=1e-7)
     s = _summary_of(runner, traj)
-    assert abs(a.figures["rms_vertical_m"] - s.rms_vertical_m) <= 1e-9  # path_error topic: exact
+    assert abs(a.figures.path_error.rms_vertical_m - s.rms_vertical_m) <= 1e-9  # path_error topic: exact
     # closest point on 401 samples vs the exact path: close, and flagged
-    assert a.figures["rms_horizontal_closest_m"] == pytest.approx(s.rms_horizontal_closest_m, abs=0.05)
+    assert a.figures.path_error_closest.rms_horizontal_m == pytest.approx(s.rms_horizontal_closest_m, abs=0.05)
     assert any("odometry" in w for w in a.warnings) and any("resolution-limited" in w for w in a.warnings)
 
 
 def test_ground_clearance_from_mission(bags):
     bag, runner, traj = bags["canyon"]
     s = _summary_of(runner, traj)
-    a = an.analyze(an.read_bag(bag))  # the mission comes from the bag's custom_data
+    a = analyze(read_bag(bag))  # the mission comes from the bag's custom_data
     assert a.mission is not None and a.mission.terrain is not None
     assert math.isfinite(s.min_clearance_m)
-    assert abs(a.figures["min_clearance_m"] - s.min_clearance_m) <= 1e-9
-    assert abs(a.figures["min_hull_clearance_m"] - s.min_hull_clearance_m) <= 1e-9
-    assert a.figures["min_clearance_t_s"] == s.min_clearance_t_s
+    cl = a.figures.clearance
+    assert abs(cl.min_clearance_m - s.min_clearance_m) <= 1e-9
+    assert abs(cl.min_hull_clearance_m - s.min_hull_clearance_m) <= 1e-9
+    assert cl.min_clearance_t_s == s.min_clearance_t_s
     # without the mission: the altimeter, and a warning that says so
-    run = an.read_bag(bag)
+    run = read_bag(bag)
     run.custom_data.pop("mission_file")
-    b = an.analyze(run)
-    assert "min_clearance_m" not in b.figures and math.isfinite(b.figures["min_altitude_m"])
+    b = analyze(run)
+    assert b.figures.clearance.min_clearance_m is None and math.isfinite(b.figures.clearance.min_altitude_m)
     assert any("altimeter" in w for w in b.warnings)
 
 
@@ -260,12 +274,12 @@ def test_truncated_bag_read_to_last_chunk(bags, tmp_path, capsys):
     cut = tmp_path / "killed"
     cut.mkdir()
     (cut / "killed_0.mcap").write_bytes(data[: len(data) // 2])  # no metadata.yaml: recorder killed
-    run = an.read_bag(cut)
+    run = read_bag(cut)
     assert run.truncated and 10 < len(run.t) < len(traj["t_s"])
-    a = an.analyze(run)
-    k = int(a.figures["ticks"])
+    a = analyze(run)
+    k = a.figures.times.ticks
     ev = traj["e_vertical_m"][:k]
-    assert abs(a.figures["rms_vertical_m"] - math.sqrt(np.mean(ev ** 2))) <= 1e-9
+    assert abs(a.figures.path_error.rms_vertical_m - math.sqrt(np.mean(ev ** 2))) <= 1e-9
     assert any("truncated" in w for w in a.warnings)
     assert an.main([str(cut), "--out", str(tmp_path / "rep")]) == 0
     assert "truncated" in capsys.readouterr().out
@@ -371,7 +385,7 @@ def test_maneuver_figures_from_bag(tmp_path):
         bag.put("/bb2/planes/cmd", cv.planes_message(t, np.radians([tr[f"cmd_dX{i}_deg"][k] for i in range(1, 6)])), t)
         bag.put("/bb2/propeller/state", cv.propeller_message(t, tr["n_rps"][k] * TWO_PI), t)
     bag.w.close()
-    a = an.analyze(an.read_bag(tmp_path / "tc"))
+    a = analyze(read_bag(tmp_path / "tc"))
     assert a.maneuver == "turning-circle" and a.maneuver_figures is not None
     want = figures_for("turning-circle", tr, **asdict(s)).to_dict()
     got = a.maneuver_figures.to_dict()
@@ -381,7 +395,7 @@ def test_maneuver_figures_from_bag(tmp_path):
             assert not math.isfinite(got[k]), k
         elif isinstance(v, float) and math.isfinite(v):
             assert got[k] == pytest.approx(v, rel=1e-6, abs=1e-9), k
-    assert a.figures["maneuver.tactical_diameter_m"] == got["tactical_diameter_m"]
+    assert a.named_figures["maneuver.tactical_diameter_m"] == got["tactical_diameter_m"]
     files = an.write_outputs([a], tmp_path / "out")
     assert "maneuver" in files and "Maneuver figures" in files["report"].read_text()
     assert a.warnings and any("no /bb2/guidance/path_error" in w for w in a.warnings)
