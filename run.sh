@@ -2,7 +2,7 @@
 # BB2 Sim: the two commands that do everything on a fresh clone.
 #   bash run.sh main    set up .venv (first time) and run the main job
 #   bash run.sh test    set up .venv (first time) and run the whole test suite
-# Other sub-commands: setup (venv only), bench (benchmarks/), shell (a shell with the venv active).
+# Other sub-commands: setup (venv only), lint (ruff check .), bench (benchmarks/), shell (a shell with the venv active).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 cd "$here"
@@ -36,8 +36,10 @@ case "$cmd" in
   setup) setup ;;
   main)  setup; activate; exec python -m bb2_tools.main_job "$@" ;;
   test)  setup; bash tools/install_chromium.sh >&2 || true; activate
+         echo "[run.sh] ruff check ." >&2; ruff check -q . || { echo "[run.sh] ruff check failed" >&2; exit 1; }
          exec python -m pytest -q -p no:cacheprovider tests "$@" ;;
+  lint)  setup; activate; exec ruff check . ;;
   bench) setup; activate; for b in benchmarks/*.py; do echo "== $b"; python "$b"; done ;;
   shell) setup; activate; exec "${SHELL:-bash}" ;;
-  *) echo "usage: bash run.sh main|test|setup|bench|shell" >&2; exit 2 ;;
+  *) echo "usage: bash run.sh main|test|setup|lint|bench|shell" >&2; exit 2 ;;
 esac

@@ -12,7 +12,8 @@ as an option for consumers that want them (see :mod:`bb2_sim.frames` for the mat
 Time stamps: every stamped message carries the simulation time (``/clock`` with use_sim_time).
 
 Lockstep handshake (simulator ``time_mode: lockstep``): for step n the simulator publishes
-``/bb2/state_native`` (reliable) at t_n (``/clock`` went to t_n when the step to t_n started); path_following answers ``/bb2/guidance/rate_cmd`` stamped t_n;
+``/bb2/state_native`` (reliable) at t_n (``/clock`` went to t_n when the step to t_n started); path_following
+answers ``/bb2/guidance/rate_cmd`` stamped t_n;
 l1_autopilot pairs state and rate command by stamp and answers ``/bb2/autopilot/vh_cmd`` and
 ``/bb2/propeller/cmd`` stamped t_n; the mixer answers ``/bb2/planes/cmd`` stamped t_n; the simulator
 integrates once it holds both commands stamped t_n.  Every topic of the handshake is reliable, so no

@@ -59,7 +59,8 @@ def add_maneuver_parser(sub) -> argparse.ArgumentParser:
     m.add_argument("name", choices=maneuver_names(), metavar="NAME",
                    help="one of: " + ", ".join(maneuver_names()))
     m.add_argument("--depth", type=finite_float, metavar="M", help="initial CG depth (m, positive down)")
-    m.add_argument("--depth-ref", type=finite_float, metavar="M", help="depth held by the autopilot (m); default: --depth")
+    m.add_argument("--depth-ref", type=finite_float, metavar="M",
+                   help="depth held by the autopilot (m); default: --depth")
     m.add_argument("--heading-ref-deg", type=finite_float, metavar="D",
                    help="heading held by the autopilot (deg, native psi: positive = bow to port)")
     m.add_argument("--speed-mps", type=finite_float, metavar="U", help="initial forward speed (m/s, positive ahead)")

@@ -247,7 +247,8 @@ def _manifest(directory: Path) -> tuple[dict[str, list[str]], str]:
             raise HullMeshError(f"{MANIFEST}: expected a mapping with 'coordinates' and {', '.join(GROUPS)}")
         unknown = set(m) - set(GROUPS) - {"coordinates"}
         if unknown:
-            raise HullMeshError(f"{MANIFEST}: unknown keys {sorted(unknown)}; allowed: coordinates, {', '.join(GROUPS)}")
+            raise HullMeshError(f"{MANIFEST}: unknown keys {sorted(unknown)}; allowed: coordinates, "
+                                f"{', '.join(GROUPS)}")
         coords = m.get("coordinates")
         if coords not in COORDINATES:
             raise HullMeshError(f"{MANIFEST}: 'coordinates' must be one of {COORDINATES}, got {coords!r}")
@@ -481,17 +482,17 @@ def _build_loft(stations: list) -> tuple[np.ndarray, np.ndarray]:
     """Symmetric loft: stations of chord points [x, s, h] -> closed mesh in the local (x, s, t) frame."""
     V, up, lw = [], [], []
     for st in stations:
-        u, l = [], []
+        u, lo = [], []
         for x, s, h in st:
             u.append(len(V))
             V.append((x, s, h))
             if h > 0.0:
-                l.append(len(V))
+                lo.append(len(V))
                 V.append((x, s, -h))
             else:
-                l.append(u[-1])
+                lo.append(u[-1])
         up.append(u)
-        lw.append(l)
+        lw.append(lo)
     V = np.asarray(V, dtype=float)
     quads = []
     for j in range(len(stations) - 1):

@@ -220,7 +220,7 @@ def _zigzag(fig: Figure, name: str, traj: Trajectory, figs: metrics.ZigzagFigure
             ax.axhline(lvl, color="0.5", linewidth=0.7, linestyle=":")
         for tr in figs.reversal_times_s:
             ax.axvline(tr, color="0.8", linewidth=0.6)
-        for k, (tp, ap, os) in enumerate(zip(figs.peak_times_s, figs.peak_angles_rad, figs.overshoots_rad)):
+        for tp, ap, os in zip(figs.peak_times_s, figs.peak_angles_rad, figs.overshoots_rad):
             ap_d = math.degrees(ap)
             ax.plot([tp], [ap_d], marker="v" if ap_d > 0 else "^", color="k", markersize=5)
             ax.annotate(f"{math.degrees(os):.2f}°", (tp, ap_d), textcoords="offset points",

@@ -64,7 +64,8 @@ def main(argv=None) -> int:
     print(f"\nwhere the time goes (separate instrumented run, {wall:.2f} s wall):")
     rest = wall - sum(parts.values())
     for k, v in list(parts.items()) + [("mission bookkeeping (rows, checks)", rest)]:
-        print(f"  {k:<50s} {v:7.2f} s  {100 * v / wall:5.1f} %  {1e3 * v / max(len(res_p.traj['t_s']), 1):6.3f} ms/tick")
+        per_tick_ms = 1e3 * v / max(len(res_p.traj['t_s']), 1)
+        print(f"  {k:<50s} {v:7.2f} s  {100 * v / wall:5.1f} %  {per_tick_ms:6.3f} ms/tick")
 
     compare = None
     if not a.no_compare:

@@ -101,7 +101,7 @@ def write_mission_bag(mission, out: Path, *, custom: dict[str, str] | None = Non
     wall0 = time.perf_counter()
     while not runner.done:
         st = runner.step()
-        rows.append(st.row)
+        rows.append(st.row.values())
         _publish_state(bag, st.state, mission.terrain)
         _publish_answers(bag, st.state.t, st.output)
         if progress_one_at is not None:  # as the path follower: 1 from the tick its virtual time ends on

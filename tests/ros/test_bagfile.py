@@ -113,7 +113,7 @@ def test_mcap_read_back_independently(sample_bag):
         assert [m.name for m in meta] == ["rosbag2"]
         assert yaml.safe_load(meta[0].metadata["serialized_metadata"])["version"] == 9
         # payloads decode with the ROS type support to what was written
-        for _, channel, msg in reader.iter_messages(topics=["/bb2/odom"]):
+        for _, _channel, msg in reader.iter_messages(topics=["/bb2/odom"]):
             odom = deserialize_message(msg.data, message_class("nav_msgs/msg/Odometry"))
             k = round((msg.log_time - 1_000_000_000) / 10_000_000)
             np.testing.assert_allclose(conv.odometry_to_state(odom).as_vector(), _state(k).as_vector(),

@@ -205,7 +205,7 @@ def test_colcon_install_command_lays_out_lib_and_share(tmp_path):
         assert (prefix / "share" / pkg / "package.xml").is_file()
     site = next(prefix.glob("lib/python3*/site-packages"))
     assert (site / "bb2_planner" / "data" / "paths").is_dir() and (site / "bb2_ros" / "simulator.py").is_file()
-    for (pkg, exe), ep in EXECUTABLES.items():
+    for pkg, exe in EXECUTABLES:
         script = prefix / "lib" / pkg / exe
         assert script.is_file() and os.access(script, os.X_OK)
         assert f"'{exe}'" in script.read_text()  # setuptools' console-script wrapper for this entry point
