@@ -144,7 +144,8 @@ class PressureIntegrator:
         return rg * G - rg * (cz[:, None] * self._S0 + np.einsum("bk,bkm->bm", vz, self._S1))
 
     def loads(self, p_earth: np.ndarray, R: np.ndarray, t: float, wave: Wave,
-              deflections_deg: np.ndarray, clip_emerged: bool = False) -> np.ndarray:
+              deflections_deg: np.ndarray, clip_emerged: bool = False, *, sea=None,
+              wave_load_method: str = "grid") -> np.ndarray:
         """[X, Y, Z, K, M, N] (N, N m; body axes, moments about the CG) of the pressure on the hull.
 
         p_earth: CG position (native earth, z up); R: body->earth rotation; deflections_deg: the five
@@ -154,18 +155,60 @@ class PressureIntegrator:
         A plane's point j sits at P + R_i d_j in the body, so its earth z is z + R[2].P + (R[2] R_i).d_j:
         the plane points are never rotated, only two row vectors per plane. Its load is
         F_i = -R_i (p . W), M_i = P x F_i - R_i (p . (d x W)).
+
+        ``sea`` (a :class:`bb2_sim.sea.Sea` with components, e.g. an irregular sea) replaces ``wave``: the
+        dynamic pressure is then the sum over its components at any heading, evaluated by
+        ``wave_load_method`` ``"grid"`` (interpolated, :mod:`bb2_sim.sea.pressure_grid`) or ``"direct"``
+        (every point and component). None (the default) is the regular ``wave`` path, unchanged.
         """
-        x0, z0 = float(p_earth[0]), float(p_earth[2])
         Ri = self._plane_rotations(deflections_deg)
-        rxz = R[0::2]                                               # rows x and z of R
-        v = np.concatenate([rxz[None], rxz @ Ri])                  # (B, 2, 3): [vx; vz] per block
-        c = np.concatenate([[[x0, z0]], self._pivots @ rxz.T + (x0, z0)])   # (B, 2)
-        G = self._block_sums(v[:, 0], v[:, 1], c[:, 0], c[:, 1], t, wave, clip_emerged)
+        if sea is None:
+            x0, z0 = float(p_earth[0]), float(p_earth[2])
+            rxz = R[0::2]                                               # rows x and z of R
+            v = np.concatenate([rxz[None], rxz @ Ri])                  # (B, 2, 3): [vx; vz] per block
+            c = np.concatenate([[[x0, z0]], self._pivots @ rxz.T + (x0, z0)])   # (B, 2)
+            G = self._block_sums(v[:, 0], v[:, 1], c[:, 0], c[:, 1], t, wave, clip_emerged)
+        else:
+            p0 = np.asarray(p_earth, dtype=float)
+            v = np.concatenate([R[None], R @ Ri])                      # (B, 3, 3): [vx; vy; vz] per block
+            c = np.concatenate([p0[None], self._pivots @ R.T + p0])    # (B, 3)
+            G = self._sea_block_sums(v, c, t, sea, clip_emerged, wave_load_method)
         out = -G[0]
         F = -np.einsum("bij,bj->bi", Ri, G[1:, :3])
         out[0:3] += F.sum(axis=0)
         out[3:6] += (cross(self._pivots, F) - np.einsum("bij,bj->bi", Ri, G[1:, 3:])).sum(axis=0)
         return out
+
+    def _sea_block_sums(self, v: np.ndarray, c: np.ndarray, t: float, sea, clip: bool,
+                        method: str) -> np.ndarray:
+        """G_b = sum over block b of p_j FM_j (B, 6) for the pressure of a component sea."""
+        rg = self.rho * self.g
+        hydro = (-rg) * (c[:, 2, None] * self._S0 + np.einsum("bk,bkm->bm", v[:, 2], self._S1))
+        comps = sea.components
+        if (comps is None or sea.calm) and not clip:
+            return hydro
+        if clip or method == "direct":
+            G = np.empty((len(self._blocks), 6))
+            for b, (dT, FMT) in enumerate(zip(self._dT, self._FMT)):
+                pts = (np.hstack([v[b], c[b][:, None]]) @ dT).T          # (N_b, 3) earth points
+                w = np.zeros(len(pts)) if comps is None else sea.pressure_head(pts, t)
+                if clip:
+                    w = np.maximum(w - pts[:, 2], 0.0)                # p / (rho g), zero above the surface
+                G[b] = FMT @ w
+            return rg * G if clip else rg * G + hydro
+        if method != "grid":
+            raise ValueError(f"wave_load_method must be 'grid' or 'direct', got {method!r}")
+        return rg * self.wave_grid().block_sums(comps, v, c, t) + hydro
+
+    def wave_grid(self):
+        """The interpolation grids of the wave pressure (built once, on first use; see ``sea_spectra.yaml``)."""
+        if getattr(self, "_wave_grid", None) is None:
+            from .sea.data import sea_data
+            from .sea.pressure_grid import WavePressureGrid
+            cfg = sea_data()["wave_load_grid"]
+            blocks = [(dT[:3].T, FMT.T) for dT, FMT in zip(self._dT, self._FMT)]
+            self._wave_grid = WavePressureGrid(blocks, float(cfg["spacing_m"]), int(cfg["order"]))
+        return self._wave_grid
 
     def volume(self) -> float:
         """Enclosed volume of the undeflected surfaces from the same integral (calm, level, CG at z = 0).

@@ -51,8 +51,15 @@ class BB2Model:
 
     def __init__(self, surfaces=None, profile: "str | Profile" = "iowa", sea_state: float = 0,
                  params: RomParameters | None = None, tables: RomTables | None = None,
-                 trim_to_buoyancy: bool | None = None, strict_sea_state: bool = True):
+                 trim_to_buoyancy: bool | None = None, strict_sea_state: bool = True, *,
+                 sea=None, current=None, wave_load_method: str = "grid"):
+        """``sea`` (a :class:`bb2_sim.sea.Sea`) replaces the sea state's regular wave (give one or the other);
+        an :class:`bb2_sim.sea.AuthorsTableSea` runs today's code path, any other sea the component sums
+        (wave loads by ``wave_load_method``, see :meth:`PressureIntegrator.loads`). ``current`` (a
+        :class:`bb2_sim.current.Current`): the hull, planes, propeller and added mass see the velocity
+        relative to the water, the kinematics the velocity over ground. Both None: today's model exactly."""
         from .geometry import load_hull  # trimesh only when a model is built
+        from .sea.sea import AuthorsTableSea
 
         self.params = params or load_parameters()
         self.tables = tables or load_tables()
@@ -61,6 +68,18 @@ class BB2Model:
             else load_hull(surfaces)
         self.hydro = PressureIntegrator(self.surfaces, self.params.rho, self.params.g)
         self.wave: Wave = wave_for_sea_state(sea_state, self.params, strict=strict_sea_state)
+        self.sea = None
+        if sea is not None:
+            if not self.wave.calm:
+                raise ValueError("give either a sea state or a sea, not both")
+            if isinstance(sea, AuthorsTableSea):
+                self.wave = sea.wave
+            elif not sea.calm:
+                self.sea = sea
+        self.current = current if current is not None and not current.calm else None
+        if wave_load_method not in ("grid", "direct"):
+            raise ValueError(f"wave_load_method must be 'grid' or 'direct', got {wave_load_method!r}")
+        self.wave_load_method = wave_load_method
         self.volume = self.hydro.volume()
         self.buoyancy_mass = self.params.rho * self.volume
         # The paper trims the weight to the integrated buoyancy. The authors' Mb equals rho V of their
@@ -87,7 +106,24 @@ class BB2Model:
         R = rotation_native(phi, theta, psi)
 
         # wave velocities (body axes) at the CG, the 5 planes and the 15 sections, in one call
-        if wave.calm:
+        uh, vh, wh = u, v, w                     # velocity relative to the water (current) for the loads
+        if self.sea is not None or self.current is not None:
+            pts_b = np.vstack([np.zeros((1, 3)), P.plane_points_body, P.section_points_body])
+            e = pos + pts_b @ R.T
+            if self.sea is not None:
+                uw_e = self.sea.orbital_velocity(e, t, q12=not prof.wave_velocity_in_phase)
+            elif not wave.calm:
+                uw_e = orbital_velocity_earth(wave, e[:, 0], e[:, 2], t, prof.wave_velocity_in_phase)
+            else:
+                uw_e = np.zeros((len(e), 3))
+            if self.current is not None:
+                uc = self.current.velocity_earth(e[:, 2])
+                uw_e = uw_e + uc
+                uc_cg = uc[0] @ R
+                uh, vh, wh = u - float(uc_cg[0]), v - float(uc_cg[1]), w - float(uc_cg[2])
+            uw = uw_e @ R
+            uw_cg, uw_planes, uw_sec = uw[0], uw[1:6], uw[6:]
+        elif wave.calm:
             uw_cg = np.zeros(3)
             uw_planes = np.zeros((5, 3))
             uw_sec = np.zeros((15, 3))
@@ -110,15 +146,16 @@ class BB2Model:
         # planes (3.2, 3.3, 5.x)
         UeX, aX = plane_flow(V, omega, uw_planes, P, guard=prof.zero_speed_guard)
         dXe = act.planes_deg + aX
-        Fp = plane_loads(dXe, UeX, u, q, z, P, self.tables, n_clamped_depth=prof.n_planes_clamped_depth)
+        Fp = plane_loads(dXe, UeX, uh, q, z, P, self.tables, n_clamped_depth=prof.n_planes_clamped_depth)
 
         # hull (5.x)
-        Xh, Yh, Zh, Kh, Mh, Nh, T_wq = hull_loads(u, v, w, p_, q, r, z, alpha, beta, U, P, self.tables,
+        Xh, Yh, Zh, Kh, Mh, Nh, T_wq = hull_loads(uh, vh, wh, p_, q, r, z, alpha, beta, U, P, self.tables,
                                                    zuvw_b_abs_beta=prof.zuvw_b_abs_beta,
                                                    kpp_once=prof.kpp_once, sign_u_guard=prof.zero_speed_guard)
 
         # pressure integral (7)
-        BFM = self.hydro.loads(pos, R, t, wave, act.planes_deg, clip_emerged=prof.free_surface_clipping)
+        BFM = self.hydro.loads(pos, R, t, wave, act.planes_deg, clip_emerged=prof.free_surface_clipping,
+                               sea=self.sea, wave_load_method=self.wave_load_method)
 
         # added mass (8)
         urel = section_relative_velocity(V, omega, uw_sec, P.section_points_body)
@@ -127,7 +164,7 @@ class BB2Model:
         F_vm = np.concatenate([dF.sum(axis=0), moment_of_forces(P.section_points_body, dF)])
 
         # propeller (6)
-        prop = propeller_load(u, z, act.rps, P, self.tables.thrust_deduction,
+        prop = propeller_load(uh, z, act.rps, P, self.tables.thrust_deduction,
                               wired_correctly=prof.thrust_deduction_wired)
 
         # statics (7.5)
