@@ -24,7 +24,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import spawn_node  # noqa: E402  (tests/ros/rosenv.py)
+from rosenv import spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 MISSION = "path: circle_r400\nstack: rate_2022\nduration_s: 300\n"

@@ -22,7 +22,7 @@ from bb2_msgs_py.contract import message_class, qos_profile, topic  # noqa: E402
 from bb2_sim.state import VehicleState  # noqa: E402
 from bb2_ros.node_common import remap_rules  # noqa: E402
 
-from rosenv import spawn_node  # noqa: E402  (tests/ros/rosenv.py)
+from rosenv import spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 MISSION = "path: circle_r400\nstack: rate_2022\nduration_s: 30\n"

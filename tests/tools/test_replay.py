@@ -28,7 +28,7 @@ from bb2_tools.bagfile import BagReader, BagWriter, qos_entry  # noqa: E402
 from bb2_tools.replay import (PlaybackClock, ReplayError, main, open_loop, replay_qos,  # noqa: E402
                               select_bag_topics)
 
-from rosenv import ros_env  # noqa: E402  (tests/ros/rosenv.py)
+from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 DURATION_S = 3.0
