@@ -129,7 +129,9 @@ def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
     assert float(st[first_ok]["sim_time_s"]) < 3.0  # the autopilot took over within the first seconds
     assert all(s["failsafe"] == "false" for s in st[first_ok:]), [s["failsafe_reason"] for s in st[first_ok:]]
     last = st[-1]
-    assert last["state"] == "finished" and int(last["failsafe_steps"]) <= 20
+    # every failsafe step came before the takeover (start-up discovery, longer on a loaded machine), none after:
+    # the status that first said "no failsafe" was sent at or after the takeover, so its step bounds them
+    assert last["state"] == "finished" and int(last["failsafe_steps"]) <= int(st[first_ok]["step"])
     assert all(int(last[k]) == 0 for k in ("rejected_nonfinite", "rejected_names", "rejected_frame",
                                            "rejected_stale", "rejected_future", "clamped"))
     # the example's own monitor agrees
