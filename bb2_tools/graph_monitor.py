@@ -3,7 +3,7 @@
 graph questions (which nodes are up, who subscribes to what).
 
 ``/clock`` and the progress come once per step (hundreds per wall second in lockstep): they are polled, the
-latest sample only; the status is spun.  From the
+latest sample only, and deserialized with rclpy's standard CDR deserializer; the status is spun.  From the
 samples the monitor derives the real-time factor and when the mission is over (``end_at``).
 :func:`free_domain_id` finds a domain id nobody else uses; :func:`format_status` is the one progress line.
 """
@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import collections
 import random
-import struct
 import threading
 import time
 from typing import Iterable
@@ -20,13 +19,6 @@ from bb2_ros.node_common import take_all
 from bb2_tools.supervisor import LaunchError
 
 SAFE_DOMAIN_IDS = range(1, 102)  # ROS 2 docs: 0..101 never collide with Linux ephemeral ports
-
-
-def _cdr_unpack(fmt: str, data: bytes) -> tuple:
-    """Unpack a fixed-layout CDR payload (after the 4-byte encapsulation header)."""
-    endian = "<" if len(data) > 1 and data[1] & 1 else ">"
-    return struct.unpack_from(endian + fmt, data, 4)
-
 
 END_WORDS = {"complete", "completed", "finished", "done", "end", "ended"}
 END_AT = ("either", "simulator", "progress")
@@ -50,6 +42,7 @@ class GraphMonitor:
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import HistoryPolicy
+        from rclpy.serialization import deserialize_message
         from rclpy.signals import SignalHandlerOptions
 
         from bb2_msgs_py.contract import message_class, qos_profile
@@ -85,11 +78,13 @@ class GraphMonitor:
             q.history, q.depth = HistoryPolicy.KEEP_LAST, 1
             return q
 
+        self._deserialize = deserialize_message
+        self._clock_type = message_class("rosgraph_msgs/msg/Clock")
+        self._progress_type = message_class("std_msgs/msg/Float64")
         self._clock_sub = self._poll_node.create_subscription(
-            message_class("rosgraph_msgs/msg/Clock"), "/clock", _unused, latest_only("/clock"), raw=True)
+            self._clock_type, "/clock", _unused, latest_only("/clock"), raw=True)
         self._progress_sub = self._poll_node.create_subscription(
-            message_class("std_msgs/msg/Float64"), "/bb2/mission/progress", _unused,
-            latest_only("/bb2/mission/progress"), raw=True)
+            self._progress_type, "/bb2/mission/progress", _unused, latest_only("/bb2/mission/progress"), raw=True)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(n)
         self._stop = threading.Event()
@@ -118,8 +113,8 @@ class GraphMonitor:
 
     def _on_clock(self, data: bytes, wall: float) -> None:
         """``wall``: the DDS source timestamp (the simulator's wall clock when it published this /clock)."""
-        sec, nsec = _cdr_unpack("iI", data)
-        t = sec + nsec * 1e-9
+        stamp = self._deserialize(data, self._clock_type).clock
+        t = stamp.sec + stamp.nanosec * 1e-9
         with self._lock:
             self.sim_time_s = t
             if self._first is None:
@@ -131,7 +126,7 @@ class GraphMonitor:
                 self._samples.popleft()
 
     def _on_progress(self, data: bytes, _wall: float = 0.0) -> None:
-        (p,) = _cdr_unpack("d", data)
+        p = self._deserialize(data, self._progress_type).data
         with self._lock:
             self.progress = p
 

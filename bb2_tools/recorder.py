@@ -29,8 +29,8 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import functools
 import signal
-import struct
 import sys
 import threading
 import time
@@ -42,6 +42,7 @@ from bb2_tools.bagfile import BagError, BagWriter, qos_entry
 from bb2_ros.node_common import take_all
 
 ODOM_TOPIC = "/bb2/odom"
+ODOM_TYPE = "nav_msgs/msg/Odometry"
 CLOCK_TOPIC = "/clock"
 TF_TOPIC = "/tf"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
@@ -77,40 +78,28 @@ def tf_from_odometry(odom) -> dict[str, Any]:
                       "rotation": {"x": q.x, "y": q.y, "z": q.z, "w": q.w}}}]}
 
 
-def _cdr_string(data: bytes, off: int) -> tuple[str, int]:
-    """A CDR string (uint32 length incl. the NUL, bytes) at ``off`` (4-aligned) -> (text, next offset)."""
-    off = (off + 3) & ~3
-    (n,) = struct.unpack_from("<I", data, 4 + off)
-    return data[8 + off:8 + off + n - 1].decode("utf-8"), off + 4 + n
+@functools.cache
+def _tf_codec():
+    """(rclpy's deserialize_message, the Odometry class, mcap_ros2's encoder of a TFMessage dict)."""
+    from mcap_ros2._dynamic import serialize_dynamic
+    from rclpy.serialization import deserialize_message
 
+    from bb2_tools.bagfile import message_definition
 
-def _put_string(out: bytearray, text: str) -> None:
-    while len(out) % 4:  # body offsets: the 4-byte encapsulation header is not counted
-        out.append(0)
-    b = text.encode("utf-8") + b"\0"
-    out += struct.pack("<I", len(b)) + b
+    encode = serialize_dynamic(TF_TYPE, message_definition(TF_TYPE))[TF_TYPE]
+    return deserialize_message, message_class(ODOM_TYPE), encode
 
 
 def tf_cdr_from_odometry_cdr(data: bytes) -> bytes:
     """The CDR of a ``tf2_msgs/TFMessage`` with the one transform of a serialized ``nav_msgs/Odometry``
-    (little-endian CDR, as rmw_fastrtps publishes): header, child frame, position -> translation,
-    orientation -> rotation.  The same bytes as encoding :func:`tf_from_odometry` with mcap_ros2's
-    dynamic encoder (tested), at a fraction of the cost: the recorder does it for every odometry."""
-    if data[:2] != b"\x00\x01":
-        raise ValueError(f"expected little-endian CDR, got encapsulation {data[:4].hex()}")
-    sec, nsec = struct.unpack_from("<iI", data, 4)
-    frame_id, off = _cdr_string(data, 8)
-    child, off = _cdr_string(data, off)
-    off = (off + 7) & ~7
-    pose = struct.unpack_from("<7d", data, 4 + off)  # position x, y, z; orientation x, y, z, w
-    out = bytearray(b"\x00\x01\x00\x00")
-    out += struct.pack("<IiI", 1, sec, nsec)  # one transform; its header stamp
-    _put_string(out, frame_id)
-    _put_string(out, child)
-    while (len(out) - 4) % 8:
-        out.append(0)
-    out += struct.pack("<7d", *pose)
-    return bytes(out)
+    (:func:`tf_from_odometry`: header, child frame, position -> translation, orientation -> rotation).
+
+    The odometry is read with rclpy's standard deserializer; tf2_msgs is not in the wheels (no rclpy type
+    support for TFMessage), so the TFMessage is written by mcap_ros2's dynamic CDR encoder from its embedded
+    definition, as :meth:`bb2_tools.bagfile.BagWriter.write_dict` does.  Bytes that are not a serialized
+    Odometry raise rclpy's ``RuntimeError``."""
+    deserialize, odometry, encode = _tf_codec()
+    return encode(tf_from_odometry(deserialize(data, odometry)))
 
 
 def subscription_qos(spec: TopicSpec, depth: int):
@@ -134,6 +123,7 @@ class Recorder:
                  use_sim_time: bool = False):
         from rclpy.clock import Clock, ClockType
         from rclpy.node import Node
+        from rclpy.serialization import deserialize_message
 
         self.bag = bag
         # parameter services are not spun (the recorder waits on its subscriptions only, see spin_once)
@@ -141,6 +131,8 @@ class Recorder:
         self.tf_from_odom = tf_from_odom and any(t.name == ODOM_TOPIC for t in topics)
         self.use_sim_time = bool(use_sim_time)
         self._sim_ns = 0  # the last /clock taken (ROS time 0 until the first, as rclpy's time source)
+        self._deserialize = deserialize_message
+        self._clock_type = message_class("rosgraph_msgs/msg/Clock")
         self._system_clock = Clock(clock_type=ClockType.SYSTEM_TIME)
         self._lock = threading.Lock()
         self._subs = []  # (subscription, spec or None: /clock for the time only)
@@ -152,7 +144,7 @@ class Recorder:
         if self.use_sim_time and CLOCK_TOPIC not in self.specs:
             from bb2_msgs_py.contract import qos_profile
             self._subs.append((self.node.create_subscription(
-                message_class("rosgraph_msgs/msg/Clock"), CLOCK_TOPIC, self._unused_callback,
+                self._clock_type, CLOCK_TOPIC, self._unused_callback,
                 qos_profile(CLOCK_TOPIC), raw=True), None))
         self.flush_period_s = float(flush_period_s)
         self._next_flush = time.monotonic() + self.flush_period_s
@@ -193,8 +185,8 @@ class Recorder:
         taken.sort(key=lambda m: (m[0], m[1]))
         for _recv, _k, spec, data, info in taken:
             if self.use_sim_time and (spec is None or spec.name == CLOCK_TOPIC):
-                sec, nanosec = struct.unpack_from("<iI", data, 4)
-                self._sim_ns = sec * 1_000_000_000 + nanosec
+                stamp = self._deserialize(data, self._clock_type).clock
+                self._sim_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
             if spec is not None:
                 self._on_message(spec, data, info)
         if self.flush_period_s > 0 and time.monotonic() >= self._next_flush:

@@ -22,7 +22,7 @@ from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 from bb2_sim.state import VehicleState  # noqa: E402
 from bb2_tools.bagfile import BagReader, recover  # noqa: E402
 
-from rosenv import ros_env  # noqa: E402  (tests/ros/rosenv.py)
+from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 N_ODOM, N_CMD = 60, 20
@@ -182,11 +182,36 @@ def test_sigkilled_recorder_leaves_a_recoverable_bag(tmp_path, domain_id):
     assert info["message_count"] == rep.message_count and not BagReader(out).truncated
 
 
-@pytest.mark.parametrize("frame_id,child", [("odom", "base_link"), ("map", "bb2/base_link"),
-                                            ("o", "b"), ("odom_ned", "base_link_frd_x")])
+# The /tf bytes the recorder wrote for _fixed_odometry before it used the standard (de)serializers (with its own
+# struct encoder, then tested against mcap_ros2's): CDR header, one transform, stamp 1234.56789 s | the frame
+# names with their alignment padding | translation and rotation (7 float64).
+TF_HEAD = "0001000001000000d20400005050d921"
+TF_FRAMES = {
+    ("odom", "base_link"): "050000006f646f6d000000000a000000626173655f6c696e6b000000",
+    ("map", "bb2/base_link"): "040000006d6170000e0000006262322f626173655f6c696e6b000000",
+    ("o", "b"): "020000006f000000020000006200000000000000",
+    ("odom_ned", "base_link_frd_x"): "090000006f646f6d5f6e65640000000010000000626173655f6c696e6b5f6672645f7800",
+}
+TF_POSE = ("000000000000f83f00000000000002c000000000001049c0"
+           "000000000000e03f000000000000e0bf000000000000e03f000000000000e03f")
+
+
+def _fixed_odometry(frame_id: str, child: str):
+    odom = message_class("nav_msgs/msg/Odometry")()
+    odom.header.stamp.sec, odom.header.stamp.nanosec = 1234, 567_890_000
+    odom.header.frame_id, odom.child_frame_id = frame_id, child
+    p = odom.pose.pose
+    p.position.x, p.position.y, p.position.z = 1.5, -2.25, -50.125
+    p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = 0.5, -0.5, 0.5, 0.5
+    odom.twist.twist.linear.x, odom.pose.covariance[0] = 7.0, 0.01
+    return odom
+
+
+@pytest.mark.parametrize("frame_id,child", list(TF_FRAMES))
 def test_tf_from_odometry_cdr_equals_the_dynamic_encoder(frame_id, child):
-    """The recorder's /tf fast path (struct on the odometry CDR) writes the bytes mcap_ros2's dynamic encoder
-    writes for tf_from_odometry, for frame names of every length modulo 4 and 8 (CDR alignment)."""
+    """The recorder's /tf (rclpy's deserializer on the odometry CDR, then mcap_ros2's encoder: tf2_msgs is not
+    installed) writes the bytes mcap_ros2's dynamic encoder writes for tf_from_odometry of the message, and the
+    very bytes the recorder wrote before, for frame names of every length modulo 4 and 8 (CDR alignment)."""
     from mcap_ros2._dynamic import serialize_dynamic
     from rclpy.serialization import serialize_message
 
@@ -198,5 +223,7 @@ def test_tf_from_odometry_cdr_equals_the_dynamic_encoder(frame_id, child):
     odom = conv.state_to_odometry(state, frame_id=frame_id, child_frame_id=child)
     encode = serialize_dynamic(TF_TYPE, message_definition(TF_TYPE))[TF_TYPE]
     assert tf_cdr_from_odometry_cdr(serialize_message(odom)) == encode(tf_from_odometry(odom))
-    with pytest.raises(ValueError, match="little-endian"):
+    want = bytes.fromhex(TF_HEAD + TF_FRAMES[frame_id, child] + TF_POSE)
+    assert tf_cdr_from_odometry_cdr(serialize_message(_fixed_odometry(frame_id, child))) == want
+    with pytest.raises(RuntimeError, match="deserialize"):
         tf_cdr_from_odometry_cdr(b"\x00\x00\x00\x00" + serialize_message(odom)[4:])
