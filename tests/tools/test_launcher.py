@@ -24,7 +24,7 @@ from bb2_tools import graph_monitor as M
 from bb2_tools import launcher as L
 from bb2_tools import supervisor as S
 
-from rosenv import ros_env  # noqa: E402  (tests/ros/rosenv.py)
+from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 
