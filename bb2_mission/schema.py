@@ -159,9 +159,11 @@ def _vec3(v: Any, what: str) -> tuple[float, float, float]:
 
 def _read_yaml(file: Path) -> dict[str, Any]:
     try:
-        doc = yaml.safe_load(file.read_text())
+        doc = yaml.safe_load(file.read_text(encoding="utf-8"))
     except OSError as e:
         raise MissionError(f"{file}: cannot read mission file ({e.strerror})") from None
+    except UnicodeDecodeError as e:
+        raise MissionError(f"{file}: not UTF-8 text (byte {e.start})") from None
     except yaml.YAMLError as e:
         raise MissionError(f"{file}: not valid YAML ({e})") from None
     if not isinstance(doc, dict):
