@@ -34,6 +34,7 @@ are usable on their own, from Python and tests.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shutil
 import signal
@@ -44,6 +45,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
+
+from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
 
 from bb2_tools.graph_monitor import END_AT, GraphMonitor, format_status, free_domain_id
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
@@ -141,10 +144,11 @@ class _StopFlag:
 
 def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[str] = (),
               ready_timeout_s: float = 30.0, timeout_s: float | None = None, status_period_s: float = 5.0,
-              out=sys.stderr, handle_signals: bool = True) -> RunResult:
+              out=sys.stderr, handle_signals: bool = True, stall_timeout_s: float | None = None) -> RunResult:
     """Start the ``early`` specs at once, then ``first`` one by one (waiting for readiness), then the rest;
-    supervise until the mission ends, a node fails, a signal arrives or ``timeout_s`` passes; stop
-    everything; return the result."""
+    supervise until the mission ends, a node fails, a signal arrives, ``timeout_s`` passes or (with
+    ``stall_timeout_s``) the sim time has not advanced for that many wall seconds since it last moved
+    (reported as stalled, exit 1); stop everything; return the result."""
     flag = _StopFlag()
     previous = {}
     if handle_signals and threading.current_thread() is threading.main_thread():
@@ -153,6 +157,7 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
     t0 = time.monotonic()
     last_status = 0.0
     reason, code = "", 0
+    last_sim: tuple[float | None, float] = (None, t0)  # (sim time, wall time it was first seen)
 
     def say(msg: str) -> None:
         print(("\r\033[K" if tty else "") + msg, file=out, flush=True)
@@ -190,6 +195,12 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 reason, code = f"interrupted ({flag.signame})", 130
             elif timeout_s and now - t0 > timeout_s:
                 reason, code = f"timeout after {timeout_s:g} s", 1
+            elif stall_timeout_s and monitor is not None and monitor.sim_time_s is not None:
+                if monitor.sim_time_s != last_sim[0]:
+                    last_sim = (monitor.sim_time_s, now)
+                elif now - last_sim[1] > stall_timeout_s:
+                    reason, code = (f"stalled: sim time stuck at {monitor.sim_time_s:.2f} s for "
+                                    f"{now - last_sim[1]:.0f} s of wall time (--stall-timeout {stall_timeout_s:g})"), 1
             if reason:
                 break
             if monitor is not None and (tty or now - last_status >= status_period_s):
@@ -231,9 +242,13 @@ def _load_yaml_mapping(path: Path, what: str) -> dict:
     if not path.is_file():
         raise LaunchError(f"{what} {path} does not exist")
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         raise LaunchError(f"{what} {path} is not valid YAML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise LaunchError(f"{what} {path} is not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise LaunchError(f"{what} {path}: cannot read it ({exc.strerror or exc})") from None
     if not isinstance(data, dict):
         raise LaunchError(f"{what} {path} must be a YAML mapping, got {type(data).__name__}")
     return data
@@ -346,6 +361,26 @@ def repair_bags(bags: Sequence[Path]) -> list[str]:
     return notes
 
 
+DEFAULT_STALL_TIMEOUT_S = 60.0
+"""Wall seconds without the sim time advancing after which ``bb2-launch`` stops the graph as stalled (the
+simulator's own lockstep timeout steps on held commands after 0.5 s by default, so a graph that lives never
+stands still this long)."""
+
+NOT_RESTARTABLE = {
+    "simulator": "a new simulator starts again at t = 0 from the mission's initial state while the rest of the "
+                 "graph stands at the run's time (it cannot rejoin the run); use simulator=stop",
+}
+"""Nodes whose ``restart`` policy is refused up front, and why (one line each)."""
+
+
+def check_restart_policies(policies: Mapping[str, RestartPolicy]) -> None:
+    """Refuse, before anything starts, a restart policy that could not rejoin the run (:data:`NOT_RESTARTABLE`)."""
+    for name, why in NOT_RESTARTABLE.items():
+        pol = policies.get(name)
+        if pol is not None and pol.action == "restart":
+            raise LaunchError(f"--restart: restarting the {name} is refused: {why}")
+
+
 def _parse(argv: Sequence[str]) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="bb2-launch", description=__doc__.split("\n\n")[0],
                                 epilog=__doc__.split("\n\n", 1)[1],
@@ -369,6 +404,9 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
                    help="the mission is over when the simulator reports the end of the mission duration, "
                         "when the progress reaches 1 (path flown), or either (default)")
     p.add_argument("--timeout", type=float, default=None, help="wall-clock limit in seconds (exit 1)")
+    p.add_argument("--stall-timeout", type=float, default=DEFAULT_STALL_TIMEOUT_S, metavar="S",
+                   help="stop the graph as stalled (exit 1) when the sim time has not advanced for S wall "
+                        f"seconds once stepping (default {DEFAULT_STALL_TIMEOUT_S:g}; 0 = never)")
     p.add_argument("--ready-timeout", type=float, default=60.0,
                    help="seconds to wait for the recorder's subscriptions and (lockstep) the simulator's "
                         "publishers (default 60)")
@@ -381,7 +419,12 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Console script ``bb2-launch``."""
+    """Console script ``bb2-launch``: exit 0 mission complete, 1 a node failed / the timeout passed, 2 bad input
+    or an OS error (one line naming the file), 130 interrupted."""
+    return run_cli("bb2-launch", lambda: _main(argv))
+
+
+def _main(argv: Sequence[str] | None) -> int:
     args = _parse(list(sys.argv[1:] if argv is None else argv))
     if args.install_ros_ws:
         ws = Path(__file__).resolve().parents[1] / "bb2_ros_ws" / "install_into_venv.py"
@@ -394,20 +437,27 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise LaunchError("a mission file is required")
         if args.domain_id is not None and not 0 <= args.domain_id <= 232:
             raise LaunchError(f"--domain-id must be in 0..232, got {args.domain_id}")
-        if args.timeout is not None and args.timeout <= 0:
-            raise LaunchError("--timeout must be > 0")
+        if args.timeout is not None and not (args.timeout > 0 and math.isfinite(args.timeout)):
+            raise LaunchError(f"--timeout must be > 0 and finite, got {args.timeout}")
+        if not (args.stall_timeout >= 0 and math.isfinite(args.stall_timeout)):
+            raise LaunchError(f"--stall-timeout must be >= 0 and finite, got {args.stall_timeout}")
+        if not (args.ready_timeout > 0 and math.isfinite(args.ready_timeout)):
+            raise LaunchError(f"--ready-timeout must be > 0 and finite, got {args.ready_timeout}")
         policies = parse_restart_policies(args.restart, [n.name for n in GRAPH_NODES], args.max_restarts)
+        check_restart_policies(policies)
         mission = args.mission.resolve()
         params = args.params.resolve() if args.params else None
         if params is not None:
             check_params_file(params)
         check_mission(mission)
-        run_dir = (args.out or args.bag_dir / f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}").resolve()
-        if run_dir.exists() and any(run_dir.iterdir()):
-            raise LaunchError(f"run directory {run_dir} exists and is not empty")
         for n in GRAPH_NODES:  # resolve runners early: one clear error, before anything starts
             node_command(n, args.runner)
-    except LaunchError as exc:
+        # the run directory is claimed atomically (os.mkdir): two launches in the same second never share one
+        if args.out is not None:
+            run_dir = claim_run_dir(path=args.out.resolve())
+        else:
+            run_dir = claim_run_dir(args.bag_dir.resolve(), f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}")
+    except (LaunchError, OutputError) as exc:
         print(f"bb2-launch: error: {exc}", file=sys.stderr)
         return 2
 
@@ -431,7 +481,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     sup = Supervisor(specs, log_dir, env=env, echo=echo)
     try:
         result = run_graph(sup, monitor, first=[s.name for s in specs if s.ready is not None],
-                           ready_timeout_s=args.ready_timeout, timeout_s=args.timeout)
+                           ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
+                           stall_timeout_s=args.stall_timeout or None)
     finally:
         sup.stop(hurry=True)
         monitor.close()

@@ -528,13 +528,14 @@ def test_bb2_launch_reports_a_killed_simulator_and_exits_nonzero(tmp_path, bb2_g
 @pytest.mark.ros
 def test_bb2_launch_each_node_killed_in_turn_is_reported_and_restarted(tmp_path, bb2_graph_available):
     """Issue 5: every node of the real graph killed in turn (SIGKILL) is reported with its cause and handled by
-    its policy (here restart for all); the graph keeps running and a final Ctrl-C still finishes the bags."""
+    its policy (here restart for all but the simulator, whose restart is refused up front: issue 10); the graph
+    keeps running and a final Ctrl-C still finishes the bags."""
     mission = _short_mission(tmp_path, 400.0)
     out = tmp_path / "bags" / "run"
     p = subprocess.Popen([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out),
-                          "--restart", "all=restart:2", "--timeout", "200"], cwd=tmp_path, env=ros_env(),
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    victims = ["planner", "path_following", "l1_autopilot", "mixer", "recorder", "simulator"]
+                          "--restart", "all=restart:2,simulator=stop", "--timeout", "200"], cwd=tmp_path,
+                         env=ros_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    victims = ["planner", "path_following", "l1_autopilot", "mixer", "recorder"]
     seen = ""
     try:
         seen += _wait_for_line(p, lambda line: re.search(r"sim +[1-9][0-9.]* s", line) is not None, timeout=90)
