@@ -159,3 +159,91 @@ def test_launch_refuses_bad_input_with_one_line(tmp_path):
         assert p.returncode == 2, (args, p.stderr)
         assert text in one_error_line(p.stderr, "bb2-launch"), (args, p.stderr)
     assert sorted(tmp_path.iterdir()) == [bad]   # nothing claimed for a refused launch
+
+
+# ------------------------------------------------------------------------------------------ bb2-launch graphs
+def _short_mission(tmp_path: Path, duration_s: float) -> Path:
+    f = tmp_path / f"straight_{duration_s:g}s.yaml"
+    f.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: straight_short\nduration_s: {duration_s}\n")
+    return f
+
+
+@pytest.mark.ros
+def test_two_launches_in_the_same_second_get_their_own_run_dirs_and_valid_bags(tmp_path):
+    """Issue 10, point 2, on the real graph: two bb2-launch with the same mission and bag folder started at once
+    write two run directories (the second claims ``<stem>_2``), both exit 0 and both bags are complete."""
+    pytest.importorskip("rclpy")
+    from bb2_tools.bagfile import BagReader
+
+    mission = _short_mission(tmp_path, 5.0)
+    cmd = [PY, "-m", "bb2_tools.launcher", str(mission), "--bag-dir", str(tmp_path / "bags"),
+           "--end-at", "simulator", "--timeout", "240"]
+    env = ros_env()
+    ps = [subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+          for _ in range(2)]
+    outs = [p.communicate(timeout=300)[1] for p in ps]
+    for p, err in zip(ps, outs):
+        assert p.returncode == 0, err[-3000:]
+    runs = sorted(d for d in (tmp_path / "bags").iterdir() if d.is_dir())
+    stems = {d.name.rsplit("_2", 1)[0] if d.name.endswith("_2") else d.name for d in runs}
+    assert len(runs) == 2, runs
+    if len(stems) == 1:  # same second: the second claimant got <stem>_2
+        assert runs[1].name == runs[0].name + "_2"
+    for d in runs:
+        assert (d / "metadata.yaml").is_file()
+        counts = BagReader(d).message_counts
+        assert counts.get("/bb2/state_native", 0) >= round(5.0 / 0.05), counts
+        assert any(f"bag:   {d}" in err for err in outs)
+
+
+@pytest.mark.ros
+def test_a_graph_whose_sim_time_stops_is_reported_stalled_and_stopped(tmp_path):
+    """Issue 10, point 3: the simulator frozen (SIGSTOP) mid-run: after --stall-timeout the launcher says the graph
+    stalled at which sim time, stops it and exits 1 — it is never left at 0x."""
+    pytest.importorskip("rclpy")
+    mission = _short_mission(tmp_path, 400.0)
+    out = tmp_path / "bags" / "run"
+    p = subprocess.Popen([PY, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--stall-timeout", "4",
+                          "--timeout", "200"], cwd=tmp_path, env=ros_env(), stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    sim_pid = None
+    try:
+        seen = ""
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 120:
+            line = p.stderr.readline()
+            seen += line
+            if "RTF" in line and "sim --" not in line and "sim     0.00" not in line:
+                break
+        logs = out / "logs"
+        import re
+        for stat in Path("/proc").glob("[0-9]*/cmdline"):
+            try:
+                cmd = stat.read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if re.search(r"\bsimulator\b", cmd) and "launcher" not in cmd and str(mission) in cmd:
+                sim_pid = int(stat.parent.name)
+        assert sim_pid is not None, seen
+        os.kill(sim_pid, signal.SIGSTOP)
+        t_stop = time.monotonic()
+        while time.monotonic() - t_stop < 60:
+            line = p.stderr.readline()
+            seen += line
+            if "stalled" in line:
+                break
+        os.kill(sim_pid, signal.SIGCONT)   # let it take the SIGINT that stops it
+        _, err = p.communicate(timeout=90)
+    finally:
+        if sim_pid is not None:
+            try:
+                os.kill(sim_pid, signal.SIGCONT)
+            except ProcessLookupError:
+                pass
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    err = seen + err
+    assert p.returncode == 1, err[-3000:]
+    assert "stopping: stalled: sim time stuck at" in err and "--stall-timeout 4" in err, err[-3000:]
+    assert (out / "metadata.yaml").is_file() and logs.is_dir()
