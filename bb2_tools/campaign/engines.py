@@ -1,0 +1,186 @@
+"""Where the runs fly: ``local`` (a process pool on this machine) or ``ray`` (a Ray cluster).
+
+Both call :func:`bb2_tools.campaign.worker.run_task` for one index at a time and hand each row to the
+driver's ``on_row`` as it lands, so the results are the same whatever the engine, the number of workers or
+the order of completion.  At most a small window of runs is in flight (about twice the workers), so a
+100,000-run campaign never holds more than that in memory.
+
+A worker that dies (SIGKILL, out of memory) breaks the local pool: the pool is rebuilt and the runs that
+were in flight are flown again; a run in flight at three such deaths is recorded as ``error``.  Ray retries
+a task whose worker died by itself (``max_retries``) and the run is recorded as ``error`` if it still fails.
+"""
+from __future__ import annotations
+
+import collections
+import math
+import os
+from typing import Any, Callable, Iterable
+
+from bb2_tools.campaign.spec import CampaignSpec
+from bb2_tools.campaign.worker import run_task
+
+__all__ = ["LocalEngine", "RayEngine", "make_engine", "ENGINES"]
+
+ENGINES = ("local", "ray")
+_MAX_ATTEMPTS = 3
+_PRELOAD = ["bb2_tools.campaign.worker", "bb2_mission.runner", "bb2_mission.schema", "bb2_sim.maneuvers",
+            "bb2_sim.metrics", "scipy.spatial", "scipy.special"]
+
+OnRow = Callable[[dict[str, Any]], None]
+OnTick = Callable[[], None]
+
+# ------------------------------------------------------------------------------------------ local
+_SPEC: CampaignSpec | None = None
+
+
+def _init_worker(spec: CampaignSpec) -> None:
+    global _SPEC
+    _SPEC = spec
+    os.environ.setdefault("MPLBACKEND", "Agg")
+
+
+def _local_task(index: int) -> dict[str, Any]:
+    assert _SPEC is not None
+    return run_task(_SPEC, index)
+
+
+def _lost_row(spec: CampaignSpec, index: int, why: str) -> dict[str, Any]:
+    return {"index": int(index), "seed": spec.run_seed(index), "status": "error", "message": why,
+            "wall_time_s": math.nan}
+
+
+class LocalEngine:
+    """A process pool of ``workers`` processes (forkserver, the project preloaded)."""
+
+    name = "local"
+
+    def __init__(self, workers: int | None = None) -> None:
+        self.workers = max(1, int(workers or os.cpu_count() or 1))
+
+    def describe(self) -> str:
+        return f"local, {self.workers} worker process{'es' if self.workers != 1 else ''}"
+
+    def run(self, spec: CampaignSpec, indices: Iterable[int], on_row: OnRow, on_tick: OnTick | None = None) -> None:
+        import multiprocessing as mp
+        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(_PRELOAD)
+        pending = collections.deque(indices)
+        attempts: collections.Counter[int] = collections.Counter()
+        window = 2 * self.workers
+        while pending:
+            broken = False
+            with ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_init_worker,
+                                     initargs=(spec,)) as pool:
+                inflight: dict[Any, int] = {}
+                while (pending or inflight) and not broken:
+                    while pending and len(inflight) < window:
+                        i = pending.popleft()
+                        try:
+                            inflight[pool.submit(_local_task, i)] = i
+                        except BrokenProcessPool:
+                            pending.appendleft(i)
+                            broken = True
+                            break
+                    if not inflight:
+                        break
+                    done, _ = wait(list(inflight), timeout=0.5, return_when=FIRST_COMPLETED)
+                    for f in done:
+                        exc = f.exception()
+                        if isinstance(exc, BrokenProcessPool):
+                            broken = True
+                            continue
+                        i = inflight.pop(f)
+                        on_row(f.result() if exc is None else
+                               _lost_row(spec, i, " ".join(f"{type(exc).__name__}: {exc}".split())[:2000]))
+                    if on_tick:
+                        on_tick()
+                if broken:   # a worker died: fly what was in flight again (a run at three deaths is an error)
+                    for f, i in sorted(inflight.items(), key=lambda fi: -fi[1]):
+                        if f.done() and f.exception() is None:
+                            on_row(f.result())
+                            continue
+                        attempts[i] += 1
+                        if attempts[i] >= _MAX_ATTEMPTS:
+                            on_row(_lost_row(spec, i, f"worker process died {attempts[i]} times while this run "
+                                                      "was in flight"))
+                        else:
+                            pending.appendleft(i)
+                    pool.shutdown(wait=True, cancel_futures=True)
+
+
+# ------------------------------------------------------------------------------------------ ray
+class RayEngine:
+    """Ray tasks (1 CPU each) on a running cluster (``address`` = ``auto`` or ``HOST:PORT``) or, with no
+    address, on a Ray instance started for this driver.  ``workers`` caps the runs in flight (default: twice
+    the cluster's CPUs)."""
+
+    name = "ray"
+
+    def __init__(self, workers: int | None = None, address: str | None = None) -> None:
+        self.workers = workers
+        self.address = address
+        self._cpus = 0
+
+    def _connect(self) -> Any:
+        import logging
+
+        try:
+            import ray
+        except ImportError:
+            from bb2_tools.campaign.errors import SpecError
+
+            raise SpecError("--engine ray: the ray package is not installed (bash run.sh setup installs it)") from None
+        os.environ.setdefault("RAY_DEDUP_LOGS", "0")
+        os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+        if not ray.is_initialized():
+            kw: dict[str, Any] = {"log_to_driver": False, "logging_level": logging.WARNING,
+                                  "include_dashboard": False} if self.address is None else \
+                {"log_to_driver": False, "logging_level": logging.WARNING}
+            ray.init(address=self.address, **kw)
+        self._cpus = int(ray.cluster_resources().get("CPU", 1))
+        return ray
+
+    def describe(self) -> str:
+        where = self.address or "a local Ray instance"
+        return f"ray at {where}" + (f", {self._cpus} CPUs" if self._cpus else "")
+
+    def run(self, spec: CampaignSpec, indices: Iterable[int], on_row: OnRow, on_tick: OnTick | None = None) -> None:
+        ray = self._connect()
+        task = ray.remote(num_cpus=1, max_retries=_MAX_ATTEMPTS - 1)(run_task)
+        spec_ref = ray.put(spec)
+        window = int(self.workers) if self.workers else 2 * max(1, self._cpus)
+        pending = collections.deque(indices)
+        inflight: dict[Any, int] = {}
+        while pending or inflight:
+            while pending and len(inflight) < window:
+                i = pending.popleft()
+                inflight[task.remote(spec_ref, i)] = i
+            done, _ = ray.wait(list(inflight), num_returns=1, timeout=0.5)
+            for ref in done:
+                i = inflight.pop(ref)
+                try:
+                    on_row(ray.get(ref))
+                except Exception as e:  # noqa: BLE001 -- worker died through the retries, object lost, ...
+                    on_row(_lost_row(spec, i, " ".join(f"ray: {type(e).__name__}: {e}".split())[:2000]))
+            if on_tick:
+                on_tick()
+
+    def shutdown(self) -> None:
+        try:
+            import ray
+
+            if ray.is_initialized():
+                ray.shutdown()
+        except ImportError:
+            pass
+
+
+def make_engine(name: str, workers: int | None = None, address: str | None = None) -> Any:
+    if name == "local":
+        return LocalEngine(workers)
+    if name == "ray":
+        return RayEngine(workers, address)
+    raise ValueError(f"unknown engine {name!r}; choose from {', '.join(ENGINES)}")

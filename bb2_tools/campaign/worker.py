@@ -1,0 +1,206 @@
+"""One campaign run, as a worker flies it: no ROS, only the library runner (or the maneuver runner).
+
+:func:`run_task` is what the local process pool and the Ray tasks call; it never raises: a run that raises
+is a row with status ``error`` and the exception as its message.  :func:`probe` checks a SPEC against the
+mission (or maneuver) before a campaign starts, so a bad key fails at once with the key named.
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+from bb2_tools.campaign.errors import SpecError
+from bb2_tools.campaign.figures import maneuver_values, mission_values
+from bb2_tools.campaign.spec import CampaignSpec, column_value
+
+__all__ = ["STATUSES", "run_task", "run_one", "probe", "build_mission", "maneuver_settings_of"]
+
+STATUSES = ("ok", "grounded", "broached", "diverged", "error")
+_MAX_MESSAGE = 2000
+
+
+def _one_line(text: str) -> str:
+    s = " ".join(str(text).split())
+    return s if len(s) <= _MAX_MESSAGE else s[: _MAX_MESSAGE - 3] + "..."
+
+
+def build_mission(spec: CampaignSpec, doc: dict[str, Any]) -> Any:
+    from bb2_mission.schema import mission_from_dict
+
+    base_dir = Path(spec.base_dir) if spec.base_dir else None
+    return mission_from_dict(doc, base_dir=base_dir, name=str(doc.get("name", spec.name)))
+
+
+def maneuver_settings_of(spec: CampaignSpec, doc: dict[str, Any]) -> Any:
+    from bb2_sim.maneuvers import maneuver_settings
+
+    return maneuver_settings(str(spec.maneuver), **doc)
+
+
+# ------------------------------------------------------------------------------------------ one run
+def run_one(spec: CampaignSpec, index: int, *, on_row: Callable[[Any], None] | None = None
+            ) -> tuple[dict[str, Any], Any]:
+    """Fly run ``index``; returns (its results-table row, the mission/maneuver result or None).
+
+    ``on_row`` gets every trajectory row as it is made (for ``--only INDEX --out-run DIR``).
+    """
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {"index": int(index), "seed": spec.run_seed(index)}
+    kinds = {v.key: v.column_kind for v in spec.vary}
+    for k, val in spec.inputs(index).items():
+        row[k] = column_value(val, kinds[k])
+    figures: dict[str, Any] = {n: None for n in spec.collect}
+    status, message, result = "error", "", None
+    try:
+        doc = spec.document(index)
+        if spec.target == "mission":
+            status, message, figures, result = _fly_mission(spec, doc, on_row)
+        else:
+            status, message, figures, result = _fly_maneuver(spec, doc, on_row)
+    except Exception as e:  # noqa: BLE001 -- a run that raises is recorded, the campaign goes on
+        status, message = "error", _one_line(f"{type(e).__name__}: {e}")
+    row.update(figures)
+    row["status"] = status
+    row["message"] = message
+    row["wall_time_s"] = time.perf_counter() - t0
+    return row, result
+
+
+def _fly_mission(spec: CampaignSpec, doc: dict[str, Any], on_row: Callable[[Any], None] | None):
+    from bb2_mission.runner import MissionRunner
+    from bb2_mission.summary import EndReason
+
+    res = MissionRunner(build_mission(spec, doc)).run(on_row=on_row)
+    s = res.summary
+    kind = s.end_reason
+    status = {EndReason.FINISHED: "ok", EndReason.DURATION: "ok", EndReason.GROUNDED: "grounded",
+              EndReason.BROACHED: "broached", EndReason.DIVERGED: "diverged"}.get(kind, "error")
+    message = _one_line(str(s.event)) if s.event is not None else ""
+    return status, message, mission_values(s, spec.collect), res
+
+
+def _fly_maneuver(spec: CampaignSpec, doc: dict[str, Any], on_row: Callable[[Any], None] | None):
+    from dataclasses import asdict
+
+    from bb2_sim.maneuvers import run_maneuver
+    from bb2_sim.metrics import figures_for
+
+    s = maneuver_settings_of(spec, doc)
+    res = run_maneuver(s, on_row=on_row)
+    status = "ok" if res.error is None else "diverged"
+    message = "" if res.error is None else _one_line(str(res.error))
+    try:
+        fig = figures_for(s.name, res.traj, **asdict(s))
+    except Exception as e:  # noqa: BLE001 -- figures of a truncated run may not exist
+        fig = None
+        if status == "ok":
+            status = "error"
+        message = _one_line((message + "; " if message else "") + f"figures: {type(e).__name__}: {e}")
+    return status, message, maneuver_values(str(spec.maneuver), fig, spec.collect), res
+
+
+_CACHES: dict[Any, Any] | None = None
+
+
+def install_worker_caches() -> None:
+    """Per-process memo of the dense Bernstein basis that every run's summary evaluates (the closest-point
+    path errors sample the path at 20001 points: a (20001 x n+1) binomial pmf, ~0.3 s of a short run).  The
+    cached matrix is the same function's result, read-only, so the figures are unchanged to the last digit."""
+    global _CACHES
+    if _CACHES is not None:
+        return
+    _CACHES = {}
+    import collections
+    import hashlib
+
+    import numpy as np
+
+    from bb2_planner import bernstein
+
+    original = bernstein.basis_matrix
+    lru: collections.OrderedDict[Any, Any] = collections.OrderedDict()
+
+    def basis_matrix(n: int, tau: Any) -> Any:
+        t = np.atleast_1d(np.asarray(tau, dtype=float))
+        if t.size < 2000:
+            return original(n, t)
+        key = (int(n), t.shape, hashlib.blake2b(t.tobytes(), digest_size=16).digest())
+        B = lru.get(key)
+        if B is None:
+            B = original(n, t)
+            B.setflags(write=False)
+            lru[key] = B
+            while len(lru) > 4:
+                lru.popitem(last=False)
+        else:
+            lru.move_to_end(key)
+        return B
+
+    basis_matrix.__doc__ = original.__doc__
+    bernstein.basis_matrix = basis_matrix
+    _CACHES["basis_matrix"] = original
+
+
+def run_task(spec: CampaignSpec, index: int) -> dict[str, Any]:
+    """The results row of run ``index`` (what the engines call; never raises)."""
+    install_worker_caches()
+    try:
+        return run_one(spec, index)[0]
+    except Exception as e:  # noqa: BLE001 -- e.g. a bad index: still one row
+        row = {"index": int(index), "seed": spec.run_seed(index), "status": "error",
+               "message": _one_line(f"{type(e).__name__}: {e}"), "wall_time_s": math.nan}
+        return row
+
+
+# ------------------------------------------------------------------------------------------ probing
+def _check(spec: CampaignSpec, doc: dict[str, Any], what: str, *, build: bool = False) -> None:
+    from bb2_mission.schema import MissionError
+    from bb2_sim.maneuvers import ManeuverError
+
+    try:
+        if spec.target == "mission":
+            m = build_mission(spec, doc)
+            if build:
+                from bb2_mission.runner import MissionRunner
+
+                MissionRunner(m)
+        else:
+            maneuver_settings_of(spec, doc)
+    except SpecError as e:
+        raise SpecError(f"{what}: {e}") from None
+    except (MissionError, ManeuverError, ValueError, TypeError, KeyError, OSError) as e:
+        msg = str(e)
+        if spec.target == "mission" and msg.startswith("mission: "):
+            msg = msg[len("mission: "):]
+        raise SpecError(f"{what}: {_one_line(msg)}") from None
+
+
+def probe(spec: CampaignSpec, max_values: int = 12) -> None:
+    """Check the SPEC against the mission (or maneuver) before flying: each varied key alone, then run 0
+    (built as far as the runner), then every value of each choice / grid key (at most ``max_values`` each).
+    Raises :class:`SpecError` naming the key."""
+    import copy
+
+    from bb2_tools.campaign.spec import set_dotted
+
+    _check(spec, copy.deepcopy(spec.base), "mission" if spec.target == "mission" else "maneuver.options")
+    first = spec.inputs(0)
+    for v in spec.vary:
+        doc = copy.deepcopy(spec.base)
+        try:
+            set_dotted(doc, v.key, first[v.key])
+        except SpecError as e:
+            raise SpecError(f"vary.{v.key}: {e}") from None
+        _check(spec, doc, f"vary.{v.key} = {first[v.key]!r}")
+        if v.kind in ("choice", "grid"):
+            for val in v.params[1:max_values]:
+                d2 = spec.document(0)
+                set_dotted(d2, v.key, copy.deepcopy(val))
+                _check(spec, d2, f"vary.{v.key} = {val!r}")
+    if spec.seed_key:
+        doc = copy.deepcopy(spec.base)
+        set_dotted(doc, spec.seed_key, spec.run_seed(0))
+        _check(spec, doc, f"seed_key {spec.seed_key}")
+    _check(spec, spec.document(0), "run 0", build=True)
