@@ -1,6 +1,7 @@
 """``bb2-sim``: command-line runner of the BB2 ROM.
 
     bb2-sim maneuver NAME [options]     one of: self-propulsion, depth-heading, turning-circle, hzz, vzz, open-loop
+    bb2-sim sea [sea options] --duration T --out FILE.csv   the free-surface elevation record of a sea
     bb2-sim mission FILE.yaml [options] closed-loop mission (ROM + planner + guidance + autopilot), no ROS
 
 Exit status: 0 done, 1 the simulation diverged (the CSV keeps every row up to it), 2 bad input.
@@ -10,7 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 
 class InputError(ValueError):
@@ -46,7 +47,71 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="bb2-sim", description="BB2 reduced-order model: maneuvers and missions.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     add_maneuver_parser(sub)
+    add_sea_parser(sub)
     return p
+
+
+def components_arg(text: str) -> int | str:
+    """``--components``: a number of components (integer >= 1) or a CSV component file."""
+    try:
+        v = float(text)
+    except ValueError:
+        return text          # a file name
+    if not math.isfinite(v) or v != int(v) or v < 1:
+        raise argparse.ArgumentTypeError(f"needs an integer number of components >= 1 (or a CSV file), got {text!r}")
+    return int(v)
+
+
+def seed_arg(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"needs an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"needs an integer >= 0, got {text!r}")
+    return v
+
+
+def point_xy(text: str) -> tuple[float, float]:
+    parts = [q for q in text.replace(" ", "").split(",") if q != ""]
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"needs X,Y (two comma-separated numbers, m), got {text!r}")
+    return finite_float(parts[0]), finite_float(parts[1])
+
+
+def add_sea_options(p: argparse.ArgumentParser, heading_flag: str = "--heading-deg") -> None:
+    """The sea options (the keys of a mission's ``sea:`` block, :mod:`bb2_sim.environment`)."""
+    from .environment import SPECTRA
+
+    g = p.add_argument_group("sea (irregular, directional; see bb2_sim.environment)")
+    g.add_argument("--spectrum", choices=SPECTRA, help="wave spectrum (regular: one wave of --amplitude-m, "
+                                                       "--period-s)")
+    g.add_argument("--hs", type=finite_float, metavar="M", help="significant wave height (m, >= 0)")
+    g.add_argument("--tp", type=finite_float, metavar="S", help="peak period (s, > 0)")
+    g.add_argument("--gamma", type=finite_float, metavar="G", help="JONSWAP peak enhancement (>= 1, default 3.3)")
+    g.add_argument("--amplitude-m", type=finite_float, metavar="A", help="regular wave amplitude (m; default Hs/2)")
+    g.add_argument("--period-s", type=finite_float, metavar="T", help="regular wave period (s; default Tp)")
+    g.add_argument(heading_flag, type=finite_float, metavar="D", dest="wave_heading_deg",
+                   help="direction the waves travel towards (deg, native earth frame: 0 = +x, 90 = +y; default 0)")
+    g.add_argument("--spreading-s", type=finite_float, metavar="S",
+                   help="cos-2s spreading exponent s (> 0): short-crested about the heading")
+    g.add_argument("--components", type=components_arg, metavar="N|FILE.csv",
+                   help="number of spectral components (default 64) or a CSV component list "
+                        "(amplitude_m, omega_rad_s, direction_deg, phase_deg)")
+    g.add_argument("--seed", type=seed_arg, metavar="K", help="seed of the random phases (default 0)")
+
+
+def sea_block_from_args(a: argparse.Namespace, sea_state: float | None = None) -> dict | None:
+    """The ``sea:`` mapping of the sea options (None if none was given)."""
+    keys = {"spectrum": a.spectrum, "hs": a.hs, "tp": a.tp, "gamma": a.gamma, "amplitude_m": a.amplitude_m,
+            "period_s": a.period_s, "heading_deg": a.wave_heading_deg, "spreading_s": a.spreading_s,
+            "components": a.components, "seed": a.seed}
+    block = {k: v for k, v in keys.items() if v is not None}
+    if not block:
+        return None
+    if sea_state is not None:
+        block["sea_state"] = sea_state
+    return block
 
 
 def add_maneuver_parser(sub) -> argparse.ArgumentParser:
@@ -77,10 +142,49 @@ def add_maneuver_parser(sub) -> argparse.ArgumentParser:
     m.add_argument("--profile", default="iowa", choices=["iowa", "corrected"], help="physics profile")
     m.add_argument("--hull-mesh", metavar="DIR", help="directory of hull surface files (STL/OBJ); default: "
                                                       "the BB2 hull generated from the table of offsets")
-    m.add_argument("--out", metavar="FILE.csv", help="write the trajectory (reference CSV columns, every 0.1 s)")
+    m.add_argument("--out", metavar="FILE.csv", help="write the trajectory (reference CSV columns and eta_cg_m, "
+                                                     "every 0.1 s)")
     m.add_argument("--plot", metavar="FILE.png", help="draw the maneuver plot")
+    m.add_argument("--overwrite", action="store_true", help="replace existing --out/--plot files (else exit 2)")
     m.add_argument("--quiet", action="store_true", help="no progress line")
+    add_sea_options(m, "--wave-heading-deg")
+    c = m.add_argument_group("current")
+    c.add_argument("--current-mps", type=finite_float, metavar="U", help="current speed (m/s, >= 0), uniform")
+    c.add_argument("--current-heading-deg", type=finite_float, metavar="D",
+                   help="direction the water moves towards (deg, native earth frame: 0 = +x, 90 = +y)")
     return m
+
+
+def add_sea_parser(sub) -> argparse.ArgumentParser:
+    """The ``sea`` sub-command: the elevation record of a sea at one earth point."""
+    p = sub.add_parser("sea", help="write the free-surface elevation record of a sea and print its Hs and Tp",
+                       description="Realise a sea (the options of a mission's sea: block) and write the elevation "
+                                   "above the calm surface at one earth point, t_s,eta_m, every dt.")
+    add_sea_options(p)
+    p.add_argument("--sea-state", type=finite_float, metavar="S",
+                   help="alone: the authors' regular table; with --spectrum: Hs and Tp of the sea-state table")
+    p.add_argument("--duration", type=finite_float, metavar="T", required=True, help="record length (s, > 0)")
+    p.add_argument("--dt", type=finite_float, metavar="S", default=0.1, help="sample interval (s, > 0; default 0.1)")
+    p.add_argument("--at", type=point_xy, metavar="X,Y", default=(0.0, 0.0),
+                   help="earth point (m, native frame; default 0,0)")
+    p.add_argument("--out", metavar="FILE.csv", required=True, help="the record: t_s,eta_m")
+    return p
+
+
+def environment_from_args(a: argparse.Namespace, sea_state: float):
+    """The maneuver's :class:`~bb2_sim.environment.Environment` from the sea and current options (None: the
+    authors' sea-state table alone, exactly as before). ``sea_state`` is the maneuver's (given or default)."""
+    from .environment import Environment, current_from_mapping, sea_from_mapping
+
+    block = sea_block_from_args(a, a.sea_state)
+    cur = None
+    if a.current_mps is not None or a.current_heading_deg is not None:
+        cur = {"speed_mps": a.current_mps if a.current_mps is not None else 0.0,
+               "heading_deg": a.current_heading_deg if a.current_heading_deg is not None else 0.0}
+    if block is None and cur is None:
+        return None
+    sea = sea_from_mapping(block if block is not None else {"sea_state": sea_state})
+    return Environment(sea, current_from_mapping(cur))
 
 
 def _fmt(value) -> str:
@@ -104,7 +208,9 @@ def _progress(enabled: bool, total: float):
 
 def run_maneuver_cli(a: argparse.Namespace) -> int:
     from .geometry import HullMeshError
-    from .maneuvers import CsvWriter, ManeuverError, build_model, maneuver_settings, run_maneuver
+    from .maneuvers import (CsvWriter, ManeuverError, build_model, check_initial_depth, maneuver_settings,
+                            run_maneuver)
+    from .outputs import OutputError, check_output_file, os_error_line
     from .waves import SeaStateError
 
     try:
@@ -112,21 +218,28 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
                               speed_mps=a.speed_mps, rps=a.rps, sea_state=a.sea_state, rudder_deg=a.rudder_deg,
                               amplitude_deg=a.amplitude_deg, check_deg=a.check_deg, sail_planes=a.sail_planes,
                               planes_deg=a.planes_deg, duration=a.duration, profile=a.profile)
+        env = environment_from_args(a, s.sea_state)
+        if env is not None:
+            s = replace(s, environment=env, sea_state=env.sea.sea_state if env.sea.authors_table else 0)
         model = build_model(s, a.hull_mesh)
+        check_initial_depth(s, model)
     except (ManeuverError, SeaStateError, HullMeshError, ValueError) as e:
         print(f"bb2-sim: error: {e}", file=sys.stderr)
         return 2
     writer = None
-    if a.out:
-        try:
+    try:  # before the run: no silent overwrite, and a folder that does not take data fails now
+        for f, what in ((a.out, "--out"), (a.plot, "--plot")):
+            if f:
+                check_output_file(f, overwrite=a.overwrite, what=what)
+        if a.out:
             writer = CsvWriter(a.out)
-        except OSError as e:
-            print(f"bb2-sim: error: cannot write {a.out}: {e}", file=sys.stderr)
-            return 2
+    except OSError as e:
+        print(f"bb2-sim: error: {os_error_line(e, a.out)}", file=sys.stderr)
+        return 2
     print(f"maneuver {s.name}: {s.doc}")
     print(f"  hull: {model.surfaces.source} ({model.surfaces.n_triangles()} triangles, V = {model.volume:.3f} m^3"
           f"{', weight trimmed to buoyancy' if model.trimmed else ''}); profile {model.profile.name}; "
-          f"sea state {model.wave.sea_state}")
+          + (f"sea state {model.wave.sea_state}" if s.environment is None else s.environment.summary()))
     try:
         res = run_maneuver(s, model, on_row=writer.write if writer else None,
                            progress=_progress(not a.quiet and sys.stderr.isatty(), s.duration))
@@ -155,15 +268,113 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
         print(f"  trajectory: {a.out}")
     if a.plot and len(res.traj["t_s"]) > 1:
         from .plots import plot_maneuver
-        plot_maneuver(s.name, res.traj, a.plot, figures=fig, settings=asdict(s))
+        try:
+            plot_maneuver(s.name, res.traj, a.plot, figures=fig, settings=asdict(s))
+        except (OSError, OutputError) as e:
+            print(f"bb2-sim: error: {os_error_line(e, a.plot)}", file=sys.stderr)
+            return 2
+        except ValueError as e:  # no figures for a truncated run: the plot needs them
+            print(f"  (no plot: {e})")
+            return 1 if res.error is not None else 0
         print(f"  plot: {a.plot}")
     return 1 if res.error is not None else 0
 
 
+def _spectrum_peak_period(eta, dt: float) -> float:
+    """Tp of a record: the period of the peak of its Welch spectrum (Hann, 50 % overlap, >= 8 segments)."""
+    import numpy as np
+    from scipy.signal import welch
+
+    n = len(eta)
+    nper = int(2 ** max(4, math.floor(math.log2(max(n // 4, 16)))))
+    f, S = welch(np.asarray(eta) - np.mean(eta), fs=1.0 / dt, nperseg=min(nper, n))
+    k = int(np.argmax(S[1:])) + 1
+    return 1.0 / f[k] if f[k] > 0 else math.inf
+
+
+def components_peak_period(comps) -> float:
+    """Tp of a component set: the peak of its energy a^2/2 spread over omega by a Gaussian kernel of three
+    mean component spacings (one component: its period)."""
+    import numpy as np
+
+    w = np.asarray(comps.omega, dtype=float)
+    e = np.asarray(comps.amplitude, dtype=float) ** 2 / 2.0
+    u = np.unique(w)
+    if len(u) == 1:
+        return 2.0 * math.pi / float(u[0])
+    sigma = 3.0 * (u[-1] - u[0]) / (len(u) - 1)
+    grid = np.linspace(u[0], u[-1], 4001)
+    S = np.exp(-0.5 * ((grid[:, None] - w[None, :]) / sigma) ** 2) @ e
+    return 2.0 * math.pi / float(grid[int(np.argmax(S))])
+
+
+def run_sea_cli(a: argparse.Namespace) -> int:
+    """``bb2-sim sea``: the elevation record t_s,eta_m of a sea at one earth point; prints its Hs and Tp."""
+    import csv
+
+    import numpy as np
+
+    from .environment import Environment, sea_from_mapping
+    from .parameters import load_parameters
+    from .waves import SeaStateError
+
+    try:
+        if a.duration <= 0:
+            raise ValueError(f"duration must be > 0 s, got {a.duration:g}")
+        if a.dt <= 0:
+            raise ValueError(f"dt must be > 0 s, got {a.dt:g}")
+        block = sea_block_from_args(a, a.sea_state)
+        if block is None:
+            block = {"sea_state": a.sea_state if a.sea_state is not None else 0}
+        env = Environment(sea_from_mapping(block))
+        params = load_parameters()
+        sea = env.sea.build(params)
+    except (SeaStateError, ValueError) as e:
+        print(f"bb2-sim: error: {e}", file=sys.stderr)
+        return 2
+    n = int(math.floor(a.duration / a.dt + 1e-9)) + 1
+    t = np.arange(n) * a.dt
+    x, y = a.at
+    eta = np.array([float(sea.elevation(x, y, float(tk))) for tk in t])
+    try:
+        with open(a.out, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["t_s", "eta_m"])
+            for tk, ek in zip(t, eta):
+                w.writerow([f"{tk:.10g}", f"{ek:.12g}"])
+    except OSError as e:
+        print(f"bb2-sim: error: cannot write {a.out}: {e.strerror or e}", file=sys.stderr)
+        return 2
+    comps = sea.components
+    m0 = 0.0 if comps is None else float(np.sum(comps.amplitude ** 2)) / 2.0
+    hs_rec = 4.0 * float(np.std(eta))
+    print(f"sea: {env.sea.summary()}")
+    hs_t, tp_t = env.sea.effective_hs_tp
+    if env.sea.spectrum == "pm" and hs_t:
+        from .sea import spectrum
+        tp_t = spectrum("pm", hs=hs_t, g=params.g).tp
+    if hs_t is not None or tp_t is not None:
+        print("  target:      " + (f"Hs = {hs_t:.4g} m" if hs_t is not None else "")
+              + (f", Tp = {tp_t:.4g} s" if tp_t is not None else ""))
+    n_c = 0 if comps is None else len(comps)
+    print(f"  realisation: Hs = {4.0 * math.sqrt(m0):.4g} m (4 sqrt(m0) of its {n_c} components; "
+          f"of the record: {hs_rec:.4g} m)")
+    tp_rec = _spectrum_peak_period(eta, a.dt) if hs_rec > 0 and n > 32 else math.nan
+    tp = components_peak_period(comps) if comps is not None and m0 > 0 else math.nan
+    print(f"  realisation: Tp = {tp:.4g} s (peak of its components' energy over omega; "
+          f"of the record's Welch spectrum: {tp_rec:.4g} s)")
+    print(f"  record: {a.out} ({n} samples, t = 0..{t[-1]:g} s every {a.dt:g} s at x, y = {x:g}, {y:g} m)")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m bb2_sim maneuver ...`` (the ROM alone); ``bb2-sim`` is :func:`bb2_tools.sim_cli.main`."""
+    """``python -m bb2_sim maneuver|sea ...`` (the ROM alone); ``bb2-sim`` is :func:`bb2_tools.sim_cli.main`."""
+    from .outputs import run_cli
+
     args = build_parser().parse_args(argv)
-    return run_maneuver_cli(args)
+    if args.command == "sea":
+        return run_cli("bb2-sim", lambda: run_sea_cli(args))
+    return run_cli("bb2-sim", lambda: run_maneuver_cli(args))
 
 
 if __name__ == "__main__":

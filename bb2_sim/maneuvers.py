@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field, fields
 from functools import lru_cache
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 import yaml
@@ -33,7 +33,16 @@ CSV_COLUMNS = [
     "cmd_dX1_deg", "cmd_dX2_deg", "cmd_dX3_deg", "cmd_dX4_deg", "cmd_dX5_deg",
     "n_rps", "J", "KT", "KQ", "thrust_N", "thrust_deduction", "thrust_net_N", "torque_Nm", "dmass_kg",
 ]
-"""Columns of the maneuver CSV: those of the authors' reference runs (native frames, see REFERENCE.md)."""
+"""Columns of the authors' reference runs (native frames, see REFERENCE.md): the maneuver CSV starts with them."""
+SEA_COLUMNS = ["eta_cg_m"]
+"""Columns after the reference ones: the free-surface elevation (m, z up) above the CG's horizontal position."""
+OUTPUT_COLUMNS = CSV_COLUMNS + SEA_COLUMNS
+"""Columns of the maneuver CSV (``bb2-sim maneuver --out``) and of :attr:`ManeuverResult.traj`."""
+
+
+TRAJECTORY_ROW_BYTES = 1500
+"""Memory of one logged row (every 0.1 s) while a maneuver runs: a list of ~34 Python floats and its numpy copy;
+:func:`validate` refuses a duration whose trajectory would not fit in memory."""
 
 
 class ManeuverError(ValueError):
@@ -71,6 +80,7 @@ class ManeuverSettings:
     profile: str = "iowa"
     propeller: str = "constant"   # constant (the authors' rps, default) | speed-pi (the root model's speed PI)
     doc: str = ""
+    environment: Any = None       # a bb2_sim.environment.Environment (irregular sea, current); None: sea_state
 
     @property
     def rps_command(self) -> float:
@@ -127,6 +137,14 @@ def validate(s: ManeuverSettings) -> None:
         raise ManeuverError(f"plane angles must be finite, got {list(s.planes_deg)}")
     if s.duration <= 0:
         raise ManeuverError(f"duration must be positive, got {s.duration}")
+    if s.depth < 0:
+        raise ManeuverError(f"initial depth {s.depth:g} m is above the calm surface (depth is positive down)")
+    try:
+        from .outputs import check_fits_in_memory
+
+        check_fits_in_memory(s.duration / (2 * 0.05) * TRAJECTORY_ROW_BYTES, f"a {s.duration:g} s trajectory")
+    except MemoryError as e:
+        raise ManeuverError(f"duration {s.duration:g} s: {e}; fly a shorter maneuver") from None
     if s.rps is not None and s.rps < 0:
         raise ManeuverError(f"rps must be >= 0, got {s.rps}")
     if s.vertical not in ("pid", "zigzag", "imposed") or s.horizontal not in ("pd", "zigzag", "rudder", "imposed"):
@@ -137,6 +155,8 @@ def validate(s: ManeuverSettings) -> None:
         raise ManeuverError(f"sail planes must be 'pid' or 'zero', got {s.sail_planes!r}")
     if "zigzag" in (s.vertical, s.horizontal) and (s.amplitude_deg <= 0 or s.check_deg <= 0):
         raise ManeuverError("zig-zags need --amplitude-deg > 0 and --check-deg > 0")
+    if s.environment is not None and s.sea_state not in (0, None) and not s.environment.sea.authors_table:
+        raise ManeuverError("give either a sea state (the authors' table) or a spectrum sea, not both")
 
 
 class ZigZag:
@@ -189,8 +209,18 @@ class ManeuverCommander:
         return planes, rps
 
 
+def surface_elevation(model: BB2Model, x_earth: float, y_earth: float, t: float) -> float:
+    """Free-surface elevation (m, z up) of the model's sea at the earth point (x, y) at time t."""
+    if model.sea is not None:
+        return float(model.sea.elevation(x_earth, y_earth, t))
+    if model.wave.calm:
+        return 0.0
+    from .sea.sea import AuthorsTableSea
+    return float(AuthorsTableSea(model.wave, model.params.g).elevation(x_earth, y_earth, t))
+
+
 def record_row(rec: StepRecord, model: BB2Model) -> list[float]:
-    """One CSV row (CSV_COLUMNS) from a major-step record."""
+    """One CSV row (OUTPUT_COLUMNS) from a major-step record."""
     x = rec.x
     P = model.params
     prop = rec.ev.prop
@@ -199,7 +229,8 @@ def record_row(rec: StepRecord, model: BB2Model) -> list[float]:
     return [rec.t, x[0], x[1], x[2], x[3] * RAD2DEG, x[4] * RAD2DEG, x[5] * RAD2DEG, x[6], x[7], x[8],
             x[9] * RAD2DEG, x[10] * RAD2DEG, x[11] * RAD2DEG, math.sqrt(x[6] ** 2 + x[7] ** 2 + x[8] ** 2),
             *rec.act.planes_deg, *rec.commands_planes_deg, n, prop.J, prop.KT, prop.KQ, thrust_ow, prop.t,
-            (1.0 - prop.t) * thrust_ow, prop.torque, rec.act.dmass_kg]
+            (1.0 - prop.t) * thrust_ow, prop.torque, rec.act.dmass_kg,
+            surface_elevation(model, x[0], x[1], rec.t)]
 
 
 @dataclass
@@ -218,7 +249,7 @@ class ManeuverResult:
 class CsvWriter:
     """Writes CSV rows as they come (flushed), so a diverged or interrupted run keeps what it had."""
 
-    def __init__(self, path: str | Path, columns: list[str] = CSV_COLUMNS):
+    def __init__(self, path: str | Path, columns: list[str] = OUTPUT_COLUMNS):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fh = open(self.path, "w", newline="")
@@ -226,15 +257,35 @@ class CsvWriter:
         self._w.writerow(columns)
 
     def write(self, row: Iterable[float]) -> None:
-        self._w.writerow([f"{v:.12g}" for v in row])
-        self._fh.flush()
+        try:
+            self._w.writerow([f"{v:.12g}" for v in row])
+            self._fh.flush()
+        except OSError as e:  # a full device: the error names the file (exit 2, one line)
+            raise OSError(e.errno, e.strerror, str(self.path)) from None
 
     def close(self) -> None:
-        self._fh.close()
+        try:
+            self._fh.close()
+        except OSError as e:
+            raise OSError(e.errno, e.strerror, str(self.path)) from None
+
+
+def check_initial_depth(s: ManeuverSettings, model: BB2Model) -> None:
+    """Refuse a start with the sail top above the calm surface (CG depth < the sail's height above the CG, the
+    broaching definition of a mission): the ROM would fly in the air."""
+    top = model.surfaces.sail_top_m()
+    if s.depth < top:
+        raise ManeuverError(f"initial depth {s.depth:g} m puts the sail top {top - s.depth:.2f} m above the calm "
+                            f"surface (the sail top is {top:.2f} m above the CG): give --depth >= {top:.2f}")
 
 
 def build_model(s: ManeuverSettings, hull_mesh: str | None = None, trim_to_buoyancy: bool | None = None) -> BB2Model:
-    return BB2Model(hull_mesh, profile=s.profile, sea_state=s.sea_state, trim_to_buoyancy=trim_to_buoyancy)
+    """The ROM of maneuver ``s``: the authors' sea-state table, or the settings' environment (sea, current)."""
+    if s.environment is None:
+        return BB2Model(hull_mesh, profile=s.profile, sea_state=s.sea_state, trim_to_buoyancy=trim_to_buoyancy)
+    from .parameters import load_parameters
+    return BB2Model(hull_mesh, profile=s.profile, trim_to_buoyancy=trim_to_buoyancy,
+                    **s.environment.model_kwargs(load_parameters()))
 
 
 def run_maneuver(s: ManeuverSettings, model: BB2Model | None = None, *, hull_mesh: str | None = None,
@@ -265,7 +316,7 @@ def run_maneuver(s: ManeuverSettings, model: BB2Model | None = None, *, hull_mes
                 on_row(row)
         if progress and k % 200 == 0:
             progress(rec.t)
-    arr = np.array(rows) if rows else np.zeros((0, len(CSV_COLUMNS)))
-    traj = {c: arr[:, i] for i, c in enumerate(CSV_COLUMNS)}
+    arr = np.array(rows) if rows else np.zeros((0, len(OUTPUT_COLUMNS)))
+    traj = {c: arr[:, i] for i, c in enumerate(OUTPUT_COLUMNS)}
     reversals = cmd.zigzag.reversals if cmd.zigzag else []
     return ManeuverResult(s, traj, err, list(reversals), time.perf_counter() - t0)

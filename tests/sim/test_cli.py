@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from bb2_sim.maneuvers import CSV_COLUMNS
+from bb2_sim.maneuvers import CSV_COLUMNS, OUTPUT_COLUMNS
 
 
 def run(*args, cwd=None):
@@ -22,7 +22,8 @@ def test_short_turning_circle_writes_csv_plot_and_figures(tmp_path):
     assert p.returncode == 0, p.stderr
     assert "Advance" in p.stdout and "Transfer" in p.stdout and "real time" in p.stdout
     rows = list(csv.reader(out.open()))
-    assert rows[0] == CSV_COLUMNS
+    assert rows[0] == OUTPUT_COLUMNS and rows[0][:len(CSV_COLUMNS)] == CSV_COLUMNS  # eta_cg_m last
+    assert all(float(r[-1]) == 0.0 for r in rows[1:])   # calm water: no elevation
     assert len(rows) == 1 + 1001                     # every 0.1 s from 0 to 100 s
     assert float(rows[-1][0]) == pytest.approx(100.0)
     assert float(rows[1][19]) == -20.0               # cmd_dX1 = -rudder for a starboard turn (dh = -20)
@@ -76,3 +77,132 @@ def test_authors_surfaces_accepted_as_user_mesh(shared, tmp_path):
     p = run("maneuver", "open-loop", "--hull-mesh", str(surf), "--duration", "10", "--out", str(out))
     assert p.returncode == 0, p.stderr
     assert "7764 triangles" in p.stdout and "trimmed" not in p.stdout
+
+
+# ------------------------------------------------------------------------------------------- the sea options
+def _read(path):
+    rows = list(csv.reader(open(path)))
+    return rows[0], [[float(v) for v in r] for r in rows[1:]]
+
+
+def test_sea_command_writes_the_elevation_record_and_prints_hs_tp(tmp_path):
+    out = tmp_path / "eta.csv"
+    p = run("sea", "--spectrum", "jonswap", "--hs", "3.25", "--tp", "9.7", "--duration", "1200", "--dt", "0.2",
+            "--seed", "3", "--out", str(out))
+    assert p.returncode == 0, p.stderr
+    head, rows = _read(out)
+    assert head == ["t_s", "eta_m"] and len(rows) == 6001
+    assert rows[1][0] == pytest.approx(0.2) and rows[-1][0] == pytest.approx(1200.0)
+    import re
+    hs = [float(v) for v in re.findall(r"Hs = ([0-9.]+) m", p.stdout)]
+    tp = [float(v) for v in re.findall(r"Tp = ([0-9.]+) s", p.stdout)]
+    assert hs[0] == 3.25 and abs(hs[1] - 3.25) < 0.05 * 3.25      # target, realisation 4 sqrt(m0)
+    assert tp[0] == 9.7 and abs(tp[1] - 9.7) < 0.05 * 9.7
+    eta = [r[1] for r in rows]
+    m = sum(eta) / len(eta)
+    assert abs(4 * (sum((e - m) ** 2 for e in eta) / len(eta)) ** 0.5 - 3.25) < 0.1 * 3.25
+    # the same sea at another point differs; the same seed gives the same record
+    out2 = tmp_path / "eta2.csv"
+    assert run("sea", "--spectrum", "jonswap", "--hs", "3.25", "--tp", "9.7", "--duration", "1200", "--dt", "0.2",
+               "--seed", "3", "--at", "100,50", "--out", str(out2)).returncode == 0
+    assert _read(out2)[1] != rows
+
+
+def test_sea_command_regular_wave_is_the_cosine(tmp_path):
+    import math
+    out = tmp_path / "reg.csv"
+    p = run("sea", "--spectrum", "regular", "--amplitude-m", "1.5", "--period-s", "8", "--heading-deg", "90",
+            "--at", "0,20", "--duration", "16", "--out", str(out))
+    assert p.returncode == 0, p.stderr
+    _, rows = _read(out)
+    k = (2 * math.pi / 8) ** 2 / 9.81
+    for t, eta in rows:
+        assert eta == pytest.approx(1.5 * math.cos(k * 20 - 2 * math.pi / 8 * t), abs=1e-9)
+
+
+def test_sea_command_reads_a_component_file(tmp_path):
+    f = tmp_path / "comps.csv"
+    f.write_text("amplitude_m,omega_rad_s,direction_deg,phase_deg\n1.0,0.6,0,0\n0.5,0.9,90,45\n")
+    out = tmp_path / "eta.csv"
+    p = run("sea", "--components", str(f), "--duration", "10", "--out", str(out))
+    assert p.returncode == 0, p.stderr
+    assert _read(out)[1][0][1] == pytest.approx(1.0 + 0.5 * 0.5 ** 0.5)
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--spectrum", "jonswap", "--hs", "-1", "--tp", "9"], "hs must be >= 0"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "0"], "tp must be > 0"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "-2"], "tp must be > 0"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "9", "--gamma", "0.9"], "gamma must be >= 1"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "9", "--components", "0"], "components"),
+    (["--spectrum", "jonswap", "--hs", "nan", "--tp", "9"], "finite"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "inf"], "finite"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "9", "--spreading-s", "nan"], "finite"),
+    (["--spectrum", "ittc", "--hs", "3"], "needs tp"),
+    (["--spectrum", "swell", "--hs", "3", "--tp", "9"], "invalid choice"),
+    (["--components", "/no/such/components.csv"], "not found"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "9", "--dt", "0"], "dt must be > 0"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "9", "--at", "1"], "X,Y"),
+])
+def test_sea_command_bad_input_exit_2(args, needle, tmp_path):
+    p = run("sea", *args, "--duration", "10", "--out", str(tmp_path / "x.csv"))
+    assert p.returncode == 2, p.stdout + p.stderr
+    assert needle in p.stderr and "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+
+
+def test_sea_command_unreadable_component_file_exit_2(tmp_path):
+    f = tmp_path / "bad.csv"
+    f.write_text("amplitude_m,omega_rad_s\n1,2\n")
+    p = run("sea", "--components", str(f), "--duration", "10", "--out", str(tmp_path / "x.csv"))
+    assert p.returncode == 2 and "missing column" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_maneuver_in_an_irregular_sea_and_a_current(tmp_path):
+    """Same columns as calm water plus eta_cg_m = the sea's elevation above the CG; the current drifts the
+    boat towards +y over ground."""
+    out = tmp_path / "sp.csv"
+    p = run("maneuver", "self-propulsion", "--duration", "10", "--spectrum", "jonswap", "--hs", "2",
+            "--tp", "9", "--components", "8", "--wave-heading-deg", "30", "--spreading-s", "8",
+            "--current-mps", "1.0", "--current-heading-deg", "90", "--out", str(out), "--quiet")
+    assert p.returncode == 0, p.stderr
+    assert "jonswap Hs 2 m" in p.stdout and "current 1 m/s towards 90 deg" in p.stdout
+    head, rows = _read(out)
+    assert head == OUTPUT_COLUMNS and len(rows) == 101
+    from bb2_sim.environment import sea_from_mapping
+    sea = sea_from_mapping({"spectrum": "jonswap", "hs": 2, "tp": 9, "components": 8, "heading_deg": 30,
+                            "spreading_s": 8}).build()
+    for r in rows[::20]:
+        assert r[-1] == pytest.approx(float(sea.elevation(r[1], r[2], r[0])), abs=1e-9)
+    assert rows[-1][2] > 4.0          # y over ground: carried towards +y by the 1 m/s current (6.9 m in 10 s)
+
+
+def test_maneuver_sea_state_table_elevation_column(tmp_path):
+    """The authors' table (--sea-state) keeps its run bit for bit; eta_cg_m is its A sin(k x - w t)."""
+    import math
+
+    from bb2_sim.parameters import load_parameters
+    from bb2_sim.waves import wave_for_sea_state
+    out = tmp_path / "dh.csv"
+    p = run("maneuver", "depth-heading", "--duration", "5", "--out", str(out), "--quiet")
+    assert p.returncode == 0, p.stderr
+    _, rows = _read(out)
+    w = wave_for_sea_state(5, load_parameters())
+    for r in rows:
+        assert r[-1] == pytest.approx(w.amplitude * math.sin(w.wavenumber * r[1] - w.omega * r[0]), abs=1e-9)
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--spectrum", "jonswap", "--hs", "-1", "--tp", "9"], "hs must be >= 0"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "0"], "tp must be > 0"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "9", "--gamma", "0"], "gamma must be >= 1"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "9", "--components", "-3"], "components"),
+    (["--spectrum", "jonswap", "--hs", "3", "--tp", "9", "--wave-heading-deg", "nan"], "finite"),
+    (["--components", "/no/such.csv"], "not found"),
+    (["--current-mps", "-1"], "current"),
+    (["--current-mps", "1", "--current-heading-deg", "inf"], "finite"),
+    (["--hs", "3"], "need a spectrum"),
+])
+def test_maneuver_bad_sea_input_exit_2(args, needle):
+    p = run("maneuver", "self-propulsion", "--duration", "1", *args)
+    assert p.returncode == 2, p.stdout + p.stderr
+    assert needle in p.stderr and "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
