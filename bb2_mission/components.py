@@ -121,11 +121,13 @@ def mission_components(m: Mission, model: Any = None) -> MissionComponents:
 
 
 # ------------------------------------------------------------------------------------------ one piece each
-def build_model(m: Mission) -> Any:
-    """The ROM of mission ``m`` (hull, profile, sea)."""
+def build_model(m: Mission, environment: Any = None) -> Any:
+    """The ROM of mission ``m`` (hull, profile, sea and current; ``environment`` overrides the mission's)."""
     from bb2_sim.model import BB2Model
+    from bb2_sim.parameters import load_parameters
 
-    return BB2Model(m.hull, profile=m.profile, sea_state=m.sea_state)
+    env = m.environment if environment is None else environment
+    return BB2Model(m.hull, profile=m.profile, **env.model_kwargs(load_parameters()))
 
 
 def build_simulator(m: Mission, model: Any = None) -> Any:

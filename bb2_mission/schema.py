@@ -21,7 +21,22 @@ Mission file (YAML; every key optional except ``path``; unknown keys are an erro
                                        # path_mean_speed: the stack's rule n = v/advance with v = L/Tf
     duration_s: null                   # null: Tf * (1 + duration_margin)
     duration_margin: 0.2
-    sea_state: 0
+    sea_state: 0                       # the authors' regular head-sea table (0..7), as before; or:
+    sea:                               # an irregular / directional sea (bb2_sim.environment; missions/README.md)
+      spectrum: jonswap                #   jonswap | pm | ittc | regular
+      hs: 3.25                         #   significant wave height, m  (or sea_state: 5 for the table's Hs, Tp)
+      tp: 9.7                          #   peak period, s
+      gamma: 3.3                       #   JONSWAP peak enhancement
+      amplitude_m: null                #   regular: amplitude (default hs/2), m
+      period_s: null                   #   regular: period (default tp), s
+      heading_deg: 0.0                 #   direction the waves travel towards, native earth frame (0 = +x)
+      spreading_s: null                #   cos-2s spreading exponent (short-crested); null = long-crested
+      components: 64                   #   number of components, or a CSV component list (file)
+      seed: 0                          #   random phases
+    current:                           # a current (bb2_sim.environment)
+      speed_mps: 0.5                   #   m/s
+      heading_deg: 90.0                #   direction the water moves towards, native earth frame (0 = +x)
+      profile: null                    #   {depths_m: [...], factors: [...]} or {water_depth_m: d, alpha: 1/7}
     profile: iowa                      # iowa | corrected
     hull: null                         # null: hull generated from the offsets; or a surface directory
     limits:
@@ -46,6 +61,8 @@ import yaml
 from bb2_control.errors import ControlConfigError, UnknownStackError
 from bb2_planner.bernstein import BernsteinPath, PathError, frame_matrix_to_native
 from bb2_planner.terrain import PathBelowTerrainError, Terrain, TerrainError, TerrainOutOfBoundsError
+from bb2_sim.environment import Environment, current_from_mapping, sea_from_mapping
+from bb2_sim.sea import SeaInputError
 
 __all__ = ["MissionError", "InitialState", "Limits", "Mission", "MISSIONS_DIR", "RPS_PATH_MEAN_SPEED", "FORMAT",
            "load_mission", "mission_from_dict", "initial_state"]
@@ -54,7 +71,8 @@ MISSIONS_DIR = Path(__file__).resolve().parents[1] / "missions"
 RPS_PATH_MEAN_SPEED = "path_mean_speed"
 RPS_PATH_MEAN_SPEED = "path_mean_speed"
 _TOP_KEYS = {"name", "description", "extends", "path", "stack", "adaptation", "terrain", "initial", "rps",
-             "duration_s", "duration_margin", "sea_state", "profile", "hull", "limits", "format"}
+             "duration_s", "duration_margin", "sea_state", "sea", "current", "profile", "hull", "limits",
+             "format"}
 _INITIAL_KEYS = {"position_m", "frame", "offset_m", "heading_deg", "pitch_deg", "speed_mps"}
 _LIMIT_KEYS = {"min_hull_clearance_m", "max_cg_z_m"}
 FORMAT = "bb2_mission/1"
@@ -106,6 +124,7 @@ class Mission:
     limits: Limits = Limits()
     description: str = ""
     source_file: Path | None = None
+    environment: Environment = Environment()   #: the sea and current (its sea is the table's sea_state if none)
 
     @property
     def duration(self) -> float:
@@ -305,6 +324,14 @@ def mission_from_dict(doc: Mapping[str, Any], *, base_dir: Path | None = None, n
         from bb2_sim.waves import wave_for_sea_state
 
         wave_for_sea_state(sea_state, load_parameters())
+        sea_doc = doc.get("sea")
+        if sea_doc is not None and "sea_state" in doc:
+            raise MissionError("give either sea_state (the authors' table) or a sea: block, not both "
+                               "(sea: {sea_state: S} is the same table)")
+        sea = sea_from_mapping(sea_doc if sea_doc is not None else {"sea_state": sea_state}, base_dir=base_dir)
+        environment = Environment(sea, current_from_mapping(doc.get("current")))
+        if sea.authors_table:
+            sea_state = sea.sea_state
         profile = doc.get("profile", "iowa")
         get_profile(profile)
         hull = doc.get("hull")
@@ -335,7 +362,7 @@ def mission_from_dict(doc: Mapping[str, Any], *, base_dir: Path | None = None, n
                     adaptation=adaptation, terrain=terrain, terrain_source=terrain_source, initial=initial,
                     rps=rps, duration_s=duration, duration_margin=margin, sea_state=sea_state,
                     profile=str(profile), hull=hull, limits=limits, description=str(doc.get("description", "")),
-                    source_file=source_file)
+                    source_file=source_file, environment=environment)
         x0 = initial_state(m)   # validates the initial state against the path (e.g. zero path speed)
         if terrain is not None:
             try:
@@ -346,7 +373,7 @@ def mission_from_dict(doc: Mapping[str, Any], *, base_dir: Path | None = None, n
                 raise MissionError(f"initial position is {-c0:.2f} m below the terrain (native x = {x0[0]:.1f}, "
                                    f"y = {x0[1]:.1f}, z = {x0[2]:.1f} m)")
         return m
-    except MissionError as e:
+    except (MissionError, SeaInputError) as e:
         raise MissionError(f"{where}: {e}") from None
     except (UnknownStackError, ControlConfigError, TerrainError, PathError, ValueError) as e:
         raise MissionError(f"{where}: {type(e).__name__}: {e}") from None
