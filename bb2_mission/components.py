@@ -22,10 +22,10 @@ import numpy as np
 
 from bb2_planner.terrain import Terrain
 
-from bb2_mission.schema import RPS_PATH_MEAN_SPEED, Mission, _resolve_stack, initial_state
+from bb2_mission.schema import RPS_PATH_MEAN_SPEED, Mission, MissionError, _resolve_stack, initial_state
 
-__all__ = ["MissionComponents", "HullProbes", "mission_components", "stack_overrides", "initial_state",
-           "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer"]
+__all__ = ["MissionComponents", "HullProbes", "mission_components", "check_initial_state", "stack_overrides",
+           "initial_state", "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer"]
 
 
 def stack_overrides(m: Mission) -> dict[str, Any]:
@@ -114,8 +114,36 @@ def mission_components(m: Mission, model: Any = None) -> MissionComponents:
     stack = build_mission_stack(m)
     x0 = initial_state(m)
     probes = HullProbes(model.surfaces)
-    max_z = m.limits.max_cg_z_m if m.limits.max_cg_z_m is not None else -probes.sail_top_m
+    max_z = check_initial_state(m, model.surfaces, probes)
     return MissionComponents(m, model, Simulator(model, x0), stack, x0, probes, float(max_z))
+
+
+def check_initial_state(m: Mission, surfaces: Any = None, probes: HullProbes | None = None) -> float:
+    """Refuse a physically impossible start with one :class:`MissionError` line: the CG above the broaching
+    limit (``limits.max_cg_z_m``; default the sail top at the calm surface, as the runner's broaching check) or
+    a hull point inside the sea floor (the runner's hull clearance below zero).  Returns the broaching limit
+    (max CG z, native, m).  ``surfaces`` default: the mission's hull (:func:`bb2_sim.geometry.load_hull`)."""
+    if probes is None:
+        if surfaces is None:
+            from bb2_sim.geometry import load_hull
+
+            surfaces = load_hull(m.hull)
+        probes = HullProbes(surfaces)
+    x0 = initial_state(m)
+    where = str(m.source_file) if m.source_file else m.name
+    max_z = float(m.limits.max_cg_z_m if m.limits.max_cg_z_m is not None else -probes.sail_top_m)
+    if x0[2] > max_z:
+        what = (f"puts the sail top {x0[2] + probes.sail_top_m:.2f} m above the calm surface (the sail top is "
+                f"{probes.sail_top_m:.2f} m above the CG)" if m.limits.max_cg_z_m is None
+                else f"is above limits.max_cg_z_m = {max_z:g} m")
+        raise MissionError(f"{where}: the initial CG z = {x0[2]:.2f} m (depth {-x0[2]:.2f} m) {what}")
+    if m.terrain is not None:
+        pts = probes.world(x0)
+        cl = pts[:, 2] - terrain_elevation(m.terrain, pts[:, 0], pts[:, 1])
+        if np.isfinite(cl).any() and float(np.nanmin(cl)) < 0:
+            raise MissionError(f"{where}: the initial state puts the hull {-float(np.nanmin(cl)):.2f} m inside "
+                               f"the sea floor (CG at native x = {x0[0]:.1f}, y = {x0[1]:.1f}, z = {x0[2]:.1f} m)")
+    return max_z
 
 
 
@@ -134,7 +162,9 @@ def build_simulator(m: Mission, model: Any = None) -> Any:
     """The ROM's fixed-step simulator at the mission's initial state (t = 0)."""
     from bb2_sim.integrator import Simulator
 
-    return Simulator(build_model(m) if model is None else model, initial_state(m))
+    model = build_model(m) if model is None else model
+    check_initial_state(m, model.surfaces)
+    return Simulator(model, initial_state(m))
 
 
 def build_mission_stack(m: Mission) -> Any:

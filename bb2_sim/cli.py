@@ -230,7 +230,7 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
     try:  # before the run: no silent overwrite, and a folder that does not take data fails now
         for f, what in ((a.out, "--out"), (a.plot, "--plot")):
             if f:
-                check_output_file(f, overwrite=a.overwrite, what=what)
+                check_output_file(f, overwrite=getattr(a, "overwrite", False), what=what)
         if a.out:
             writer = CsvWriter(a.out)
     except OSError as e:

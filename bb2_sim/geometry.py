@@ -102,6 +102,11 @@ class HullSurfaces:
         return np.asarray(
             trimesh.triangles.mass_properties(self._all_triangles(), skip_inertia=True).center_mass, dtype=float)
 
+    def sail_top_m(self) -> float:
+        """Highest point of all surfaces (planes undeflected) above the CG, m: the sail top; the vehicle is
+        above the surface (broaching) when its CG z exceeds ``-sail_top_m()`` (mission ``limits.max_cg_z_m``)."""
+        return float(self._all_triangles()[..., 2].max())
+
     def n_triangles(self) -> int:
         """Total number of triangles (fixed and moving)."""
         return int(len(self.fixed_vertices) + sum(len(v) for v in self.plane_vertices))

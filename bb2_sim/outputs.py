@@ -214,3 +214,24 @@ def run_cli(prog: str, body: Callable[[], int], *, path_hint: str | os.PathLike 
 def is_no_space(exc: BaseException) -> bool:
     """True for a full device (ENOSPC, EDQUOT)."""
     return isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT)
+
+
+def available_memory_bytes() -> int | None:
+    """MemAvailable of /proc/meminfo (bytes), or None where it cannot be read."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+def check_fits_in_memory(nbytes: float, what: str, *, fraction: float = 0.5) -> None:
+    """Raise ``MemoryError`` (one line: what, how much, how much is free) when ``nbytes`` exceeds ``fraction``
+    of the available memory: refuse up front instead of growing without bound."""
+    avail = available_memory_bytes()
+    if avail is not None and nbytes > fraction * avail:
+        raise MemoryError(f"{what} would need about {nbytes / 2**30:.1f} GiB in memory, more than "
+                          f"{fraction:.0%} of the {avail / 2**30:.1f} GiB available")

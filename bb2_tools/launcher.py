@@ -262,7 +262,9 @@ def check_mission(path: Path) -> None:
     except ImportError:
         return
     try:
-        load_mission(path)
+        from bb2_mission.components import check_initial_state
+
+        check_initial_state(load_mission(path))   # above the surface / inside the sea floor: refused up front
     except (ValueError, OSError) as exc:
         msg = str(exc)
         raise LaunchError(msg if str(path) in msg else f"mission {path}: {msg}") from None
