@@ -109,7 +109,8 @@ def check_writable_dir(folder: str | os.PathLike, *, create: bool = True) -> Pat
 def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what: str = "output file",
                       flag: str = "--overwrite") -> Path:
     """Before a run: ``path`` may be (over)written. Refuses an existing file unless ``overwrite`` (the
-    message names ``flag``), a directory in its place, and a folder that does not take data."""
+    message names ``flag``), a directory in its place, and a folder that does not take data (the nearest
+    existing folder on the way is probed; nothing is created)."""
     p = Path(path)
     if p.is_dir():
         raise OutputError(f"{what} {p} is a directory")
@@ -118,7 +119,12 @@ def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what:
             raise OutputError(f"{what} {p} exists (give {flag} to replace it)")
         if not os.access(p, os.W_OK):
             raise OutputError(f"cannot overwrite {what} {p}: permission denied")
-    check_writable_dir(p.parent if str(p.parent) else Path("."))
+    folder = p.parent if str(p.parent) else Path(".")
+    while not folder.exists() and folder != folder.parent:  # nothing is created yet: probe what exists
+        folder = folder.parent
+    if not folder.is_dir():
+        raise OutputError(f"cannot write {what} {p}: {folder} is not a directory")
+    _probe_write(folder)
     return p
 
 

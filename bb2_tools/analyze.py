@@ -27,6 +27,8 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from bb2_sim.outputs import check_output_file, os_error_line, run_cli
+
 from bb2_tools.analysis import Analysis, analyze, compare, format_figure
 from bb2_tools.bag_run import AnalysisError, read_bag
 from bb2_tools.bagfile import BagError
@@ -89,13 +91,32 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     p.add_argument("--maneuver-settings", default=None, help="JSON object of maneuver settings")
     p.add_argument("--label", action="append", default=None, help="label of each bag (repeat)")
     p.add_argument("--no-report", action="store_true", help="print the figures only")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing report.html / figures.json in the output directory (else exit 2)")
     return p.parse_args(list(argv))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``bb2-analyze``; returns the exit code (0 ok, 2 bad input)."""
+    """Entry point of ``bb2-analyze``; returns the exit code (0 ok, 2 bad input or an OS error: one line naming
+    the file, 130 interrupted)."""
+    return run_cli("bb2-analyze", lambda: _main(argv))
+
+
+def _output_dir(args: argparse.Namespace) -> Path:
+    first = args.bags[0]
+    return args.out or ((first if first.is_dir() else first.parent / first.stem) / "analysis")
+
+
+def _main(argv: Sequence[str] | None) -> int:
     args = _parse(sys.argv[1:] if argv is None else argv)
     try:
+        for b in args.bags:
+            if not b.exists():
+                raise AnalysisError(f"no bag at {b} (expected a bag directory or a .mcap file)")
+        if not args.no_report:  # before the analysis: a folder that does not take data, or a report already there
+            out = _output_dir(args)
+            for name in ("report.html", "figures.json"):
+                check_output_file(out / name, overwrite=args.overwrite, what="output file")
         if len(args.bags) > 2:
             raise AnalysisError(f"give one or two bags, got {len(args.bags)}")
         labels = list(args.label or [])
@@ -122,6 +143,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (AnalysisError, BagError) as exc:
         print(f"bb2-analyze: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        print(f"bb2-analyze: error: {os_error_line(exc)}", file=sys.stderr)
+        return 2
     if len(analyses) == 2:
         for a in analyses:
             print(f"{a.label}: {a.run.source}" + "".join(f"\n  warning: {w}" for w in a.warnings))
@@ -129,8 +153,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         print("\n".join(figure_lines(analyses[0])))
     if not args.no_report:
-        first = args.bags[0]
-        out = args.out or ((first if first.is_dir() else first.parent / first.stem) / "analysis")
+        out = _output_dir(args)
         files = write_outputs(analyses, out)
         print(f"bb2-analyze: report {files['report']} ({len(files) - 2} figures in {out})")
     return 0

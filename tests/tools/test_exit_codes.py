@@ -112,7 +112,8 @@ def test_claim_of_an_explicit_dir(tmp_path):
 
 def test_check_output_file_refuses_existing_and_directories(tmp_path):
     f = tmp_path / "a" / "b.csv"
-    assert O.check_output_file(f) == f and f.parent.is_dir() and not f.exists()
+    assert O.check_output_file(f) == f and not f.parent.exists()   # nothing created before the run
+    f.parent.mkdir()
     f.write_text("keep me")
     with pytest.raises(O.OutputError, match="exists .give --overwrite"):
         O.check_output_file(f)
