@@ -207,7 +207,8 @@ class PressureIntegrator:
             from .sea.pressure_grid import WavePressureGrid
             cfg = sea_data()["wave_load_grid"]
             blocks = [(dT[:3].T, FMT.T) for dT, FMT in zip(self._dT, self._FMT)]
-            self._wave_grid = WavePressureGrid(blocks, float(cfg["spacing_m"]), int(cfg["order"]))
+            self._wave_grid = WavePressureGrid(blocks, [float(h) for h in cfg["spacings_m"]], int(cfg["order"]),
+                                               float(cfg["max_kh"]))
         return self._wave_grid
 
     def volume(self) -> float:

@@ -70,6 +70,9 @@ class ComponentSea(Sea):
         self._k = comps.wavenumber
         self._kx = self._k * np.cos(comps.direction)
         self._ky = self._k * np.sin(comps.direction)
+        self._kxy = np.array([self._kx, self._ky])                          # (2, I)
+        self._dir2 = np.column_stack([np.cos(comps.direction), np.sin(comps.direction)])   # (I, 2)
+        self._aw = comps.amplitude * comps.omega
 
     @property
     def components(self) -> WaveComponents:
@@ -93,15 +96,15 @@ class ComponentSea(Sea):
     def orbital_velocity(self, points_earth, t: float, *, q12: bool = False) -> np.ndarray:
         p = _points(points_earth)
         c = self._c
-        th = self._phase(p[..., 0], p[..., 1], t)
-        if q12:
-            th -= HALF_PI
-        amp = np.exp(np.multiply.outer(p[..., 2], self._k)) * (c.amplitude * c.omega)
-        horiz = amp * np.cos(th)
+        # the phase th' from one product with [kx; ky], the constant part (and Q12's -pi/2) per component
+        th = p[..., :2] @ self._kxy
+        th += (c.phase - HALF_PI if q12 else c.phase) - c.omega * t
+        amp = np.exp(np.multiply.outer(p[..., 2], self._k))
+        amp *= self._aw
         out = np.empty(p.shape)
-        out[..., 0] = horiz @ np.cos(c.direction)
-        out[..., 1] = horiz @ np.sin(c.direction)
-        out[..., 2] = (amp * np.sin(th)).sum(axis=-1)
+        out[..., :2] = (amp * np.cos(th)) @ self._dir2
+        amp *= np.sin(th)
+        out[..., 2] = amp.sum(axis=-1)
         return out
 
 
