@@ -248,3 +248,112 @@ def test_a_graph_whose_sim_time_stops_is_reported_stalled_and_stopped(tmp_path):
     assert p.returncode == 1, err[-3000:]
     assert "stopping: stalled: sim time stuck at" in err and "--stall-timeout 4" in err, err[-3000:]
     assert (out / "metadata.yaml").is_file() and logs.is_dir()
+
+
+# ------------------------------------------------------------------------------------------ bb2-sim
+def test_maneuver_refuses_impossible_inputs_with_exit_2(tmp_path):
+    cases = {
+        ("--depth", "-5"): "above the calm surface",
+        ("--depth", "5"): "sail top 6.40 m above the calm surface",
+        ("--duration", "1e9"): "in memory",
+    }
+    for args, text in cases.items():
+        p = bb2("bb2-sim", "maneuver", "turning-circle", *args, "--quiet", cwd=tmp_path)
+        assert p.returncode == 2, (args, p.stderr)
+        assert text in one_error_line(p.stderr, "bb2-sim"), (args, p.stderr)
+
+
+def test_maneuver_outputs_never_overwritten_silently_and_os_errors_are_exit_2(tmp_path):
+    csv = tmp_path / "tc.csv"
+    csv.write_text("keep me\n")
+    p = bb2("bb2-sim", "maneuver", "turning-circle", "--duration", "1", "--out", str(csv), cwd=tmp_path)
+    assert p.returncode == 2 and "--overwrite" in one_error_line(p.stderr, "bb2-sim")
+    assert csv.read_text() == "keep me\n"
+    png = tmp_path / "tc.png"
+    png.write_bytes(b"x")
+    p = bb2("bb2-sim", "maneuver", "turning-circle", "--duration", "1", "--plot", str(png), cwd=tmp_path)
+    assert p.returncode == 2 and str(png) in one_error_line(p.stderr, "bb2-sim")
+    p = bb2("bb2-sim", "maneuver", "turning-circle", "--duration", "1", "--out", str(csv), "--overwrite",
+            cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    assert csv.read_text().startswith("t_s,")
+    if Path("/dev/full").exists():   # a full device: one line naming the file, exit 2 (not 1: nothing diverged)
+        p = bb2("bb2-sim", "maneuver", "turning-circle", "--duration", "1", "--out", "/dev/full", "--overwrite",
+                cwd=tmp_path)
+        assert p.returncode == 2 and "/dev/full: No space left" in one_error_line(p.stderr, "bb2-sim")
+
+
+@needs_unshare
+@pytest.mark.parametrize("state", ["ro", "full"])
+def test_maneuver_and_mission_on_read_only_or_full_folder_fail_before_the_run(tmp_path, state):
+    mnt = tmp_path / "m"
+    p = run_on_mount([PY, "-m", "bb2_tools.sim_cli", "maneuver", "turning-circle", "--duration", "30",
+                      "--out", str(mnt / "sub" / "tc.csv")], mnt, state=state, cwd=tmp_path)
+    assert p.returncode == 2, p.stderr
+    assert str(mnt) in one_error_line(p.stderr, "bb2-sim") and "maneuver turning-circle" not in p.stdout
+    p = run_on_mount([PY, "-m", "bb2_tools.sim_cli", "mission", str(REPO / "missions" / "straight.yaml"),
+                      "--out", str(mnt / "sub")], mnt, state=state, cwd=tmp_path)
+    assert p.returncode == 2, p.stderr
+    assert str(mnt) in one_error_line(p.stderr, "bb2-sim") and "mission straight" not in p.stdout
+
+
+def test_mission_refuses_impossible_starts_and_bad_files(tmp_path):
+    base = REPO / "missions"
+    files = {
+        "up.yaml": (f"extends: {base / 'straight.yaml'}\ninitial: {{offset_m: [0, 0, 300]}}\n",
+                    "above the calm surface"),
+        "floor.yaml": (f"extends: {base / 'canyon.yaml'}\ninitial: {{offset_m: [0, 0, -48]}}\n",
+                       "inside the sea floor"),
+        "long.yaml": (f"extends: {base / 'straight.yaml'}\nduration_s: 1.0e+9\n", "in memory"),
+    }
+    for name, (text, why) in files.items():
+        (tmp_path / name).write_text(text)
+        p = bb2("bb2-sim", "mission", str(tmp_path / name), cwd=tmp_path)
+        assert p.returncode == 2, (name, p.stderr)
+        assert why in one_error_line(p.stderr, "bb2-sim"), (name, p.stderr)
+    (tmp_path / "latin1.yaml").write_bytes(b"path: straight\nname: caf\xe9\n")
+    for tool, args in (("bb2-sim", ["mission", str(tmp_path / "latin1.yaml")]),
+                       ("bb2-launch", [str(tmp_path / "up.yaml"), "--bag-dir", str(tmp_path / "bags")])):
+        p = bb2(tool, *args, cwd=tmp_path)
+        assert p.returncode == 2, p.stderr
+        line = one_error_line(p.stderr, tool)
+        assert ("not UTF-8" in line) if "latin1" in args[-1] else ("above the calm surface" in line), line
+    assert not (tmp_path / "bags").exists()
+
+
+def test_ctrl_c_exits_130_after_flushing_the_csv(tmp_path):
+    csv = tmp_path / "tc.csv"
+    p = subprocess.Popen([PY, "-m", "bb2_tools.sim_cli", "maneuver", "turning-circle", "--duration", "5000",
+                          "--out", str(csv)], cwd=tmp_path, env=ros_env(), stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 120 and (not csv.exists() or csv.stat().st_size < 20000):
+        time.sleep(0.2)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err
+    assert "Traceback" not in err and "interrupted" in err
+    lines = csv.read_text().splitlines()
+    assert lines[0].startswith("t_s,") and len(lines) > 10
+    assert all(len(ln.split(",")) == len(lines[0].split(",")) for ln in lines[:-1])
+
+
+# ------------------------------------------------------------------------------------------ bb2-analyze
+@needs_unshare
+def test_analyze_read_only_out_fails_before_the_analysis(tmp_path):
+    """A bag written by the in-process graph-free writer is enough: the failure must come before reading it."""
+    from bb2_tools.bagfile import BagWriter
+
+    bag = tmp_path / "bag"
+    with BagWriter(bag) as w:
+        w.add_topic("/clock", "rosgraph_msgs/msg/Clock")
+    mnt = tmp_path / "m"
+    p = run_on_mount([PY, "-m", "bb2_tools.analyze", str(bag), "--out", str(mnt / "sub")], mnt, state="ro")
+    assert p.returncode == 2, p.stderr
+    line = one_error_line(p.stderr, "bb2-analyze")
+    assert str(mnt / "sub") in line and "Read-only" in line   # not "no usable topics": checked first
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "report.html").write_text("keep")
+    p = bb2("bb2-analyze", str(bag), "--out", str(tmp_path / "out"))
+    assert p.returncode == 2 and "--overwrite" in one_error_line(p.stderr, "bb2-analyze")
+    assert (tmp_path / "out" / "report.html").read_text() == "keep"
