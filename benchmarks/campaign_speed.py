@@ -1,0 +1,168 @@
+"""Campaign throughput (issue 14): local pool with 1 and 2 workers, Ray on K = 1 and 2 raylets, and the
+one-process-per-run baseline; plus the memory of building the results of a 100,000-run journal.
+
+    .venv/bin/python benchmarks/campaign_speed.py [--mission missions/canyon.yaml] [--runs 8]
+        [--duration S] [--no-baseline] [--no-ray] [--store-rows 100000]
+
+Every campaign is the same SPEC (the mission with the guidance look-ahead ``stack.guidance.d_m`` drawn uniform in
+[200, 300] m and ``adaptation`` on/off): runs/s is runs / wall time of the engine (pool or cluster start-up
+included), and "1000 runs" is the projection 1000 / (runs/s).  Goals: 1,000 canyon runs (500 s each) in
+<= 10 min on this 2-core machine; on Ray, K nodes >= 0.9 K x one node's throughput -- measured here with
+Ray's own multi-node test cluster (``ray.cluster_utils.Cluster``: K raylets of 1 CPU each on this machine,
+reported as such).  The baseline is today's way: one ``bb2-sim mission`` process per run, two at a time.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bb2_tools.campaign.engines import LocalEngine, RayEngine  # noqa: E402
+from bb2_tools.campaign.spec import parse_spec  # noqa: E402
+from bb2_tools.campaign.worker import probe  # noqa: E402
+
+
+def make_spec(mission: str, runs: int, duration: float | None):
+    vary: dict = {"stack.guidance.d_m": {"uniform": [200.0, 300.0]}, "adaptation": [True, False]}
+    if duration is not None:
+        vary["duration_s"] = duration
+    spec = parse_spec({"name": "campaign_speed", "mission": mission, "seed": 1, "samples": max(1, (runs + 1) // 2),
+                       "vary": vary, "collect": ["rms_vertical", "rms_horizontal", "min_clearance"]})
+    probe(spec)
+    return spec
+
+
+def timed(engine, spec, n: int) -> tuple[float, list[dict]]:
+    rows: list[dict] = []
+    t0 = time.perf_counter()
+    engine.run(spec, range(n), rows.append)
+    return time.perf_counter() - t0, rows
+
+
+def key(rows: list[dict]) -> list[tuple]:
+    return sorted(tuple(sorted((k, v) for k, v in r.items() if k != "wall_time_s")) for r in rows)
+
+
+def line(label: str, n: int, wall: float, base: float | None = None) -> str:
+    rate = n / wall
+    s = f"  {label:<44s} {n:4d} runs in {wall:7.1f} s  {rate:6.3f} runs/s  1000 runs: {1000 / rate / 60:6.1f} min"
+    if base:
+        s += f"  ({rate / base:.2f}x)"
+    return s
+
+
+def ray_cluster_rate(spec, n: int, k: int) -> tuple[float, list[dict]]:
+    import ray
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
+    try:
+        for _ in range(k - 1):
+            cluster.add_node(num_cpus=1)
+        cluster.wait_for_nodes()
+        eng = RayEngine(address=cluster.address)
+        eng._connect()
+        return timed(eng, spec, n)
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+
+
+def baseline(mission: str, n: int, duration: float | None) -> float:
+    """One ``bb2-sim mission`` process per run, two at a time (the mission file as is)."""
+    with tempfile.TemporaryDirectory() as d:
+        f = Path(d) / "m.yaml"
+        f.write_text(f"extends: {Path(mission).resolve()}\n" + (f"duration_s: {duration}\n" if duration else ""))
+        t0 = time.perf_counter()
+        running: list[subprocess.Popen] = []
+        for _ in range(n):
+            while len(running) >= 2:
+                running = [p for p in running if p.poll() is None]
+                time.sleep(0.05)
+            running.append(subprocess.Popen([str(Path(sys.executable).parent / "bb2-sim"), "mission", str(f),
+                                              "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        for p in running:
+            p.wait()
+        return time.perf_counter() - t0
+
+
+def store_memory(rows: int) -> str:
+    """Peak RSS growth while results.parquet/csv are built from a synthetic journal of ``rows`` runs."""
+    import json
+
+    from bb2_tools.campaign.store import Journal, write_results
+
+    spec = parse_spec({"mission": "circle", "samples": rows, "vary": {"stack.guidance.d_m": {"uniform": [0, 1]}}})
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        with open(out / "runs.jsonl", "w") as fh:
+            for i in range(rows):
+                r = {"index": i, "seed": spec.run_seed(i), "stack.guidance.d_m": 0.5, "status": "ok", "message": "",
+                     "wall_time_s": 1.0}
+                r.update({c: 1.5 for c in spec.collect})
+                r.update(completed=True, end_reason="finished")
+                fh.write(json.dumps(r) + "\n")
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        t0 = time.perf_counter()
+        table = write_results(out, spec, Journal(out / "runs.jsonl"))
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        size = (out / "results.parquet").stat().st_size
+    return (f"  results of a {rows}-run journal ({table.num_columns} columns): built in {wall:.1f} s, peak RSS "
+            f"+{(after - before) / 1024:.0f} MB, results.parquet {size / 1e6:.1f} MB")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mission", default=str(REPO / "missions" / "canyon.yaml"))
+    ap.add_argument("--runs", type=int, default=8)
+    ap.add_argument("--duration", type=float, default=None, help="duration_s of every run (default: the mission's)")
+    ap.add_argument("--no-baseline", action="store_true")
+    ap.add_argument("--no-ray", action="store_true")
+    ap.add_argument("--store-rows", type=int, default=100_000)
+    a = ap.parse_args(argv)
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    spec = make_spec(a.mission, a.runs, a.duration)
+    n = min(a.runs, spec.n_runs)
+    print(f"campaign_speed: {n} runs of {a.mission} ({'duration ' + str(a.duration) + ' s' if a.duration else 'full'}"
+          f"), {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} at start")
+    w1, r1 = timed(LocalEngine(1), spec, n)
+    print(line("local, 1 worker", n, w1))
+    w2, r2 = timed(LocalEngine(2), spec, n)
+    print(line("local, 2 workers", n, w2, n / w1))
+    assert key(r1) == key(r2), "local 1 and 2 workers differ"
+    if not a.no_ray:
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            print("  ray: not installed")
+        else:
+            k1, q1 = ray_cluster_rate(spec, n, 1)
+            print(line("ray test cluster, K = 1 raylet x 1 CPU", n, k1))
+            k2, q2 = ray_cluster_rate(spec, n, 2)
+            print(line("ray test cluster, K = 2 raylets x 1 CPU", n, k2, n / k1))
+            ratio = (n / k2) / (n / k1)
+            print(f"  Ray scaling: K = 2 throughput = {ratio:.2f} x K = 1 (goal >= 1.8) -> "
+                  f"{'MET' if ratio >= 1.8 else 'NOT MET'}; results equal to local: {key(q1) == key(r1) == key(q2)}")
+    if not a.no_baseline:
+        nb = min(n, 4)
+        wb = baseline(a.mission, nb, a.duration)
+        print(line("baseline: one bb2-sim process per run, 2 at a time", nb, wb))
+    best = n / w2
+    print(f"GOAL 1000 runs <= 10 min on this machine: {1000 / best / 60:.1f} min with 2 local workers -> "
+          f"{'MET' if 1000 / best <= 600 else 'NOT MET'}  (load average {os.getloadavg()[0]:.1f} at the end)")
+    if a.store_rows:
+        print(store_memory(a.store_rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,308 @@
+"""``bb2-campaign`` (issue 14) on small campaigns of short missions.
+
+* the same results (to the last digit, wall time aside) from the local pool with 1 and 2 workers and from Ray
+  on a real local cluster started here (a head and a second node, bound to 127.0.0.1);
+* a driver SIGKILLed mid-campaign and resumed gives exactly the full set, no duplicates;
+* a broken run is recorded as ``error`` with its message, and the campaign goes on;
+* a malformed SPEC exits 2 with one line naming the field;
+* a run flown alone (``--only INDEX --out-run DIR``) and the library runner give the campaign's row.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+pa = pytest.importorskip("pyarrow")
+import pyarrow.csv  # noqa: E402,F401
+import pyarrow.parquet as pq  # noqa: E402
+
+from bb2_tools.campaign import cli  # noqa: E402
+from bb2_tools.campaign.spec import parse_spec  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+BIN = Path(sys.executable).parent
+
+# 6 draws x 2 grid points = 12 runs of 3 s of the circle mission; with seed 8, sample 1 (runs 2, 3) draws a
+# negative initial speed: the mission refuses it, so those runs are errors (run 0 is valid: the probe passes).
+SPEC = {
+    "mission": "circle",
+    "seed": 8,
+    "samples": 6,
+    "vary": {
+        "duration_s": 3,
+        "adaptation": [True, False],
+        "stack.guidance.d_m": {"uniform": [200.0, 300.0]},
+        "initial.speed_mps": {"uniform": [-1.0, 6.0]},
+        "initial.offset_m": {"choice": [[0, 0, 0], [0, 5, -2]]},
+    },
+    "collect": ["rms_vertical", "rms_horizontal", "max_vertical_m", "end_reason", "mission_time_s"],
+}
+N_RUNS = 12
+BROKEN = {2, 3}
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PATH"] = f"{BIN}{os.pathsep}{env.get('PATH', '')}"
+    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+    env.setdefault("MPLBACKEND", "Agg")
+    env["RAY_USAGE_STATS_ENABLED"] = "0"
+    return env
+
+
+def _campaign(*args: str, report: bool = False, timeout: float = 240) -> subprocess.CompletedProcess:
+    extra = ["--quiet"] + ([] if report else ["--no-report"])
+    return subprocess.run([str(BIN / "bb2-campaign"), *args, *extra], cwd=REPO, env=_env(), capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def _write_spec(path: Path, doc: dict) -> Path:
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def _table(out: Path):
+    return pq.read_table(out / "results.parquet")
+
+
+def _comparable(t) -> list[dict]:
+    return [{k: v for k, v in r.items() if k != "wall_time_s"} for r in t.to_pylist()]
+
+
+@pytest.fixture(scope="module")
+def spec_file(tmp_path_factory) -> Path:
+    return _write_spec(tmp_path_factory.mktemp("campaign") / "small.yaml", SPEC)
+
+
+@pytest.fixture(scope="module")
+def reference(spec_file, tmp_path_factory) -> Path:
+    """The campaign flown by the local pool with 2 workers."""
+    out = tmp_path_factory.mktemp("ref") / "local2"
+    r = _campaign(str(spec_file), "--out", str(out), "--workers", "2", report=True)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+# ------------------------------------------------------------------------------------------ design
+def test_design_is_a_function_of_the_spec_and_the_index():
+    a, b = parse_spec(SPEC), parse_spec(json.loads(json.dumps(SPEC)))
+    assert a.n_runs == N_RUNS and a.n_grid == 2
+    assert [a.inputs(i) for i in range(N_RUNS)] == [b.inputs(i) for i in range(N_RUNS)]
+    assert len({a.run_seed(i) for i in range(N_RUNS)}) == N_RUNS
+    # grid fastest: runs 2k and 2k+1 share the draws and differ in adaptation only
+    i0, i1 = a.inputs(4), a.inputs(5)
+    assert i0["adaptation"] is True and i1["adaptation"] is False
+    assert {k: v for k, v in i0.items() if k != "adaptation"} == {k: v for k, v in i1.items() if k != "adaptation"}
+    # a name of a stack becomes {base: name} with the overridden gain
+    doc = a.document(0)
+    assert doc["stack"] == {"base": "rate_2022", "guidance": {"d_m": a.inputs(0)["stack.guidance.d_m"]}}
+
+
+def test_latin_hypercube_stratifies_every_distribution():
+    s = parse_spec({"mission": "circle", "seed": 3, "samples": 10, "sampling": "latin_hypercube",
+                    "vary": {"initial.offset_m.2": {"uniform": [0.0, 10.0]}, "stack.guidance.d_m": {"uniform": [0, 1]}}})
+    for key, width in (("initial.offset_m.2", 10.0), ("stack.guidance.d_m", 1.0)):
+        bins = sorted(int(s.inputs(i)[key] / width * 10) for i in range(10))
+        assert bins == list(range(10)), (key, bins)
+
+
+# ------------------------------------------------------------------------------------------ engines
+def test_local_one_and_two_workers_give_the_same_results(spec_file, reference, tmp_path):
+    r = _campaign(str(spec_file), "--out", str(tmp_path / "local1"), "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    one, two = _table(tmp_path / "local1"), _table(reference)
+    assert one.num_rows == N_RUNS and one.column("index").to_pylist() == list(range(N_RUNS))
+    assert _comparable(one) == _comparable(two)
+    assert one.schema.names == ["index", "seed", *SPEC["vary"], *SPEC["collect"], "status", "message", "wall_time_s"]
+    csv_rows = (tmp_path / "local1" / "results.csv").read_text().splitlines()
+    assert len(csv_rows) == N_RUNS + 1 and csv_rows[0].startswith('"index","seed","duration_s"')
+    for f in ("campaign.yaml", "report.html", "results.csv"):
+        assert (reference / f).stat().st_size > 0
+    meta = yaml.safe_load((reference / "campaign.yaml").read_text())
+    assert meta["campaign"]["runs"] == N_RUNS and meta["software"]["package"] == "bb2-sim-suite"
+
+
+def test_a_broken_run_is_recorded_with_its_message(reference):
+    rows = _table(reference).to_pylist()
+    bad = {r["index"] for r in rows if r["status"] == "error"}
+    assert bad == BROKEN
+    for i in BROKEN:
+        assert "initial.speed_mps must be > 0" in rows[i]["message"], rows[i]["message"]
+        assert rows[i]["rms_vertical"] is None
+    ok = [r for r in rows if r["status"] == "ok"]
+    assert len(ok) >= 8 and all(r["mission_time_s"] == 3.0 and r["end_reason"] == "duration" for r in ok)
+
+
+def test_figures_equal_the_library_runner_and_a_run_alone(spec_file, reference, tmp_path):
+    """The row of run 5 = bb2_mission's runner on the overridden document = ``--only 5 --out-run DIR``."""
+    from bb2_mission.runner import MissionRunner
+    from bb2_mission.schema import MISSIONS_DIR, mission_from_dict
+
+    spec = parse_spec(SPEC)
+    row = _table(reference).to_pylist()[5]
+    s = MissionRunner(mission_from_dict(spec.document(5), base_dir=MISSIONS_DIR)).run().summary
+    assert (row["rms_vertical"], row["rms_horizontal"], row["max_vertical_m"]) == \
+        (s.rms_vertical_m, s.rms_horizontal_m, s.max_vertical_m)
+    r = _campaign(str(spec_file), "--only", "5", "--out-run", str(tmp_path / "run5"))
+    assert r.returncode == 0, r.stderr
+    alone = pa.csv.read_csv(tmp_path / "run5" / "run.csv").to_pylist()[0]
+    assert {k: alone[k] for k in SPEC["collect"]} == {k: row[k] for k in SPEC["collect"]}
+    assert (tmp_path / "run5" / "circle.csv").stat().st_size > 1000
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _stop(p: subprocess.Popen) -> None:
+    """End a process group this test started (SIGTERM, then SIGKILL)."""
+    for sig, wait in ((signal.SIGTERM, 3), (signal.SIGKILL, 5)):
+        try:
+            os.killpg(p.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            p.wait(wait)
+            time.sleep(0.5)
+        except subprocess.TimeoutExpired:
+            continue
+
+
+@pytest.fixture(scope="module")
+def ray_cluster(tmp_path_factory):
+    """A real two-node Ray cluster on this machine: a head and a second raylet, 1 CPU each, on 127.0.0.1."""
+    pytest.importorskip("ray")
+    port = _free_port()
+    env = _env()
+    logs = tmp_path_factory.mktemp("ray")
+    common = ["--node-ip-address=127.0.0.1", "--num-cpus=1", "--block", "--disable-usage-stats"]
+    procs = []
+    try:
+        head = subprocess.Popen([str(BIN / "ray"), "start", "--head", f"--port={port}", "--include-dashboard=false",
+                                 *common], env=env, stdout=open(logs / "head.log", "w"), stderr=subprocess.STDOUT,
+                                start_new_session=True)
+        procs.append(head)
+        addr = f"127.0.0.1:{port}"
+        probe = ("import ray, sys, time; ray.init(address=sys.argv[1], log_to_driver=False); t = time.time()\n"
+                 "while sum(n['Alive'] for n in ray.nodes()) < int(sys.argv[2]) and time.time() - t < 90: time.sleep(0.5)\n"
+                 "print(sum(n['Alive'] for n in ray.nodes()))")
+        deadline = time.time() + 90
+        while time.time() < deadline:
+            try:
+                with socket.create_connection(("127.0.0.1", port), timeout=1):
+                    break
+            except OSError:
+                assert head.poll() is None, (logs / "head.log").read_text()
+                time.sleep(0.5)
+        node = subprocess.Popen([str(BIN / "ray"), "start", f"--address={addr}", *common], env=env,
+                                stdout=open(logs / "node.log", "w"), stderr=subprocess.STDOUT, start_new_session=True)
+        procs.append(node)
+        r = subprocess.run([sys.executable, "-c", probe, addr, "2"], env=env, capture_output=True, text=True,
+                           timeout=150)
+        assert r.returncode == 0 and r.stdout.strip().splitlines()[-1] == "2", r.stdout + r.stderr
+        yield addr
+    finally:
+        for p in reversed(procs):
+            _stop(p)
+
+
+def test_ray_on_a_two_node_local_cluster_gives_the_same_results(spec_file, reference, ray_cluster, tmp_path):
+    r = _campaign(str(spec_file), "--out", str(tmp_path / "ray"), "--engine", "ray", "--address", ray_cluster)
+    assert r.returncode == 0, r.stderr
+    assert _comparable(_table(tmp_path / "ray")) == _comparable(_table(reference))
+
+
+# ------------------------------------------------------------------------------------------ nothing is lost
+def test_sigkilled_driver_resumes_to_exactly_the_full_set(spec_file, reference, tmp_path):
+    out = tmp_path / "killed"
+    p = subprocess.Popen([str(BIN / "bb2-campaign"), str(spec_file), "--out", str(out), "--workers", "2", "--quiet"],
+                         cwd=REPO, env=_env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                         start_new_session=True)
+    journal = out / "runs.jsonl"
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline and p.poll() is None:
+            if journal.exists() and journal.read_bytes().count(b"\n") >= 3:
+                break
+            time.sleep(0.02)
+        assert p.poll() is None, "the campaign ended before it could be killed"
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait(10)
+    finally:
+        _stop(p)   # the pool's processes left behind (same session)
+    before = journal.read_bytes().count(b"\n")
+    assert 3 <= before < N_RUNS and not (out / "results.parquet").exists()
+    r = _campaign(str(spec_file), "--out", str(out), "--resume", "--workers", "2")
+    assert r.returncode == 0, r.stderr
+    lines = [json.loads(x) for x in journal.read_text().splitlines()]
+    assert sorted(x["index"] for x in lines) == list(range(N_RUNS)), "each run exactly once in the journal"
+    assert _comparable(_table(out)) == _comparable(_table(reference))
+    assert f"this session flew {N_RUNS - before} " in r.stdout
+    again = _campaign(str(spec_file), "--out", str(out), "--resume")
+    assert again.returncode == 0 and "this session flew 0 " in again.stdout
+
+
+def test_an_existing_campaign_is_not_overwritten(spec_file, reference):
+    r = _campaign(str(spec_file), "--out", str(reference))
+    assert r.returncode == 2 and "--resume" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+# ------------------------------------------------------------------------------------------ bad input
+BAD = [
+    ({"mision": "circle"}, "mision"),
+    ({}, "mission / maneuver"),
+    ({"mission": "no_such_mission.yaml"}, "mission"),
+    ({"mission": "circle", "samples": 0}, "samples"),
+    ({"mission": "circle", "vary": {"initial.speed_mps": {"uniform": [5, 1]}}}, "vary.initial.speed_mps"),
+    ({"mission": "circle", "vary": {"initial.speed_mps": {"gauss": [5, 1]}}}, "vary.initial.speed_mps"),
+    ({"mission": "circle", "vary": {"bogus_field": [1, 2]}}, "vary.bogus_field"),
+    ({"mission": "circle", "vary": {"initial.offset_m": {"choice": [[0, 0, 0], [1, 2]]}}}, "initial.offset_m"),
+    ({"mission": "circle", "vary": {"sea_state": [0, 42]}}, "vary.sea_state"),
+    ({"mission": "circle", "collect": ["rms_vertical", "rms_sideways"]}, "collect"),
+    ({"maneuver": {"name": "barrel-roll"}}, "maneuver.name"),
+    ({"maneuver": {"name": "turning-circle"}, "vary": {"rudder": [10, 20]}}, "vary.rudder"),
+]
+
+
+@pytest.mark.parametrize("doc, field", BAD, ids=[b[1] for b in BAD])
+def test_a_malformed_spec_exits_2_with_one_line_naming_the_field(doc, field, tmp_path, capsys):
+    f = _write_spec(tmp_path / "bad.yaml", doc)
+    assert cli.main([str(f), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("bb2-campaign: error: ") and field in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+def test_bad_command_lines_exit_2(tmp_path):
+    f = _write_spec(tmp_path / "s.yaml", {"mission": "circle"})
+    r = _campaign(str(f), "--workers", "0")
+    assert r.returncode == 2 and "--workers" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    r = _campaign(str(f), "--only", "3", "--out-run", str(tmp_path / "x"))
+    assert r.returncode == 2 and "--only 3" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_maneuver_campaign_collects_the_printed_figures(tmp_path):
+    """A maneuver campaign in-process: the figures of bb2_sim.metrics by field name and in degrees."""
+    import math
+
+    from bb2_tools.campaign.worker import run_one
+
+    spec = parse_spec({"maneuver": {"name": "turning-circle", "options": {"duration": 20}},
+                       "vary": {"rudder_deg": [10, 20]},
+                       "collect": ["peak_roll_rad", "peak_roll_deg", "initial_speed_m_s"]})
+    row, res = run_one(spec, 1)
+    assert row["status"] == "ok" and row["rudder_deg"] == 20 and res.settings.rudder_deg == 20
+    assert math.isclose(row["peak_roll_deg"], math.degrees(row["peak_roll_rad"]), rel_tol=1e-15)
+    shutil.rmtree(tmp_path, ignore_errors=True)
