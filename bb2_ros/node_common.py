@@ -42,7 +42,9 @@ class NodeConfigError(ValueError):
 def declare(node, name: str, default: Any, description: str, *, read_only: bool = False) -> Any:
     """Declare ``name`` with ``default`` and a description; return its (possibly overridden) value.
 
-    A value of the wrong type in a params file raises :class:`NodeConfigError` naming the parameter.
+    A value of the wrong type in a params file raises :class:`NodeConfigError` naming the parameter, and so do a
+    NaN/inf for a number and a ``-p name:=value`` of the command line (or the launcher) that is not of the
+    parameter's type — rclpy would silently keep the params file's value or the default (issue 10).
     """
     from rcl_interfaces.msg import ParameterDescriptor
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
@@ -55,11 +57,63 @@ def declare(node, name: str, default: Any, description: str, *, read_only: bool 
     except (InvalidParameterTypeException, InvalidParameterValueException, TypeError) as exc:
         raise NodeConfigError(f"parameter {name!r}: {exc}") from None
     value = p.value
+    raw = command_line_params().get(name)
+    if raw is not None:
+        _check_command_line_value(name, raw, default)
     if is_float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise NodeConfigError(f"parameter {name!r} must be a number, got {value!r}")
         value = float(value)
+        if value != value or value in (float("inf"), float("-inf")):
+            raise NodeConfigError(f"parameter {name!r} must be finite, got {value!r}")
     return value
+
+
+_node_argv: list[str] | None = None  # the argv run_node gave rclpy (for command_line_params)
+
+
+def command_line_params(argv: Sequence[str] | None = None) -> dict[str, str]:
+    """``name -> raw value`` of every ``-p``/``--param name:=value`` in the ROS arguments of ``argv`` (default
+    the arguments :func:`run_node` started the node with, else ``sys.argv``; the last one of a name wins, as in
+    rcl)."""
+    out: dict[str, str] = {}
+    in_ros = False
+    args = list((_node_argv if _node_argv is not None else sys.argv) if argv is None else argv)
+    for i, a in enumerate(args):
+        if a == "--ros-args":
+            in_ros = True
+        elif a == "--":
+            in_ros = False
+        elif in_ros and a in ("-p", "--param") and i + 1 < len(args):
+            name, sep, value = args[i + 1].partition(":=")
+            if sep:
+                out[name] = value
+    return out
+
+
+def _check_command_line_value(name: str, raw: str, default: Any) -> None:
+    import yaml
+
+    try:
+        v = yaml.safe_load(raw) if raw != "" else ""
+    except yaml.YAMLError:
+        v = raw
+    if isinstance(v, str) and isinstance(default, float):  # rcl reads 1e3 as a double, YAML 1.1 as a string
+        try:
+            v = float(v)
+        except ValueError:
+            pass
+    ok = True
+    if isinstance(default, bool):
+        ok = isinstance(v, bool)
+    elif isinstance(default, float):
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and v == v and abs(v) != float("inf")
+    elif isinstance(default, int):
+        ok = isinstance(v, int) and not isinstance(v, bool)
+    if not ok:
+        kind = {bool: "true or false", float: "a finite number", int: "an integer"}[type(default)]
+        raise NodeConfigError(f"parameter {name!r}: invalid value {raw!r} on the command line "
+                              f"(-p {name}:={raw}); it must be {kind}")
 
 
 def require_choice(name: str, value: str, choices: Iterable[str]) -> str:
@@ -198,6 +252,8 @@ def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str]
     from rclpy.signals import SignalHandlerOptions
 
     argv = list(sys.argv if args is None else args)
+    global _node_argv
+    _node_argv = argv
     try:
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl's own message names the bad params file / argument

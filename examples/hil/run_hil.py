@@ -27,6 +27,7 @@ Exit status: 0 the flight finished with finite states and no failsafe after the 
 from __future__ import annotations
 
 import argparse
+import math
 import json
 import os
 import random
@@ -145,6 +146,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: random in 100..230)")
     p.add_argument("--summary", type=Path, default=None, help="write the monitor's JSON summary here")
     args = p.parse_args(argv)
+    for flag, v in (("--duration", args.duration), ("--rate-hz", args.rate_hz),
+                    ("--command-timeout", args.command_timeout)):
+        if not (v > 0 and math.isfinite(v)):  # a negative duration would fly the whole mission (issue 10)
+            p.exit(2, f"{p.prog}: error: {flag} must be > 0 and finite, got {v:g}\n")
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        p.exit(2, f"{p.prog}: error: --domain-id must be in 0..232, got {args.domain_id}\n")
+    if not args.mission.is_file():
+        p.exit(2, f"{p.prog}: error: mission file {args.mission} does not exist\n")
 
     domain = args.domain_id if args.domain_id is not None else random.randint(100, 230)
     env = dict(os.environ)

@@ -357,3 +357,35 @@ def test_analyze_read_only_out_fails_before_the_analysis(tmp_path):
     p = bb2("bb2-analyze", str(bag), "--out", str(tmp_path / "out"))
     assert p.returncode == 2 and "--overwrite" in one_error_line(p.stderr, "bb2-analyze")
     assert (tmp_path / "out" / "report.html").read_text() == "keep"
+
+
+# ------------------------------------------------------------------------------------------ node parameters
+@pytest.mark.ros
+@pytest.mark.parametrize("bad", ["lockstep_timeout_s:=abc", "lockstep_timeout_s:=.nan", "wait_for_readers:=maybe"])
+def test_node_refuses_an_invalid_command_line_value_after_the_params_file(bad):
+    """rclpy keeps the params file's value (or the default) for a -p value of the wrong type: the node must
+    refuse it, exit 2 with one line naming the parameter (the launcher passes its -p after --params-file)."""
+    pytest.importorskip("rclpy")
+    from rosenv import spawn_node
+
+    p = spawn_node("bb2_ros.simulator", 199, "--params-file", str(REPO / "config" / "bb2_graph.yaml"),
+                   "-p", f"mission_file:={REPO / 'missions' / 'straight.yaml'}", "-p", bad)
+    try:
+        out, _ = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 2, out
+    name = bad.split(":=")[0]
+    errors = [ln for ln in out.splitlines() if ": error:" in ln]
+    assert len(errors) == 1 and f"parameter {name!r}" in errors[0], out
+    assert "Traceback" not in out
+
+
+def test_run_hil_refuses_a_negative_duration():
+    for args, text in ((["--duration", "-5"], "--duration must be > 0"), (["--rate-hz", "nan"], "--rate-hz"),
+                       (["--mission", "/nonexistent.yaml"], "does not exist")):
+        p = subprocess.run([PY, str(REPO / "examples" / "hil" / "run_hil.py"), *args], capture_output=True,
+                           text=True, timeout=60, env=ros_env())
+        assert p.returncode == 2 and text in one_error_line(p.stderr, "run_hil.py"), p.stderr
