@@ -1,5 +1,6 @@
 """``report.html`` of a campaign: status counts, statistics of every figure, the figures against every varied
-input, their distributions and the failure map (self-contained HTML, see :mod:`bb2_tools.report`)."""
+input, their distributions and the failure map (self-contained HTML, see :mod:`bb2_tools.report`; the same
+images are written as PNG files into ``figures/`` beside it)."""
 from __future__ import annotations
 
 import io
@@ -40,6 +41,8 @@ def _png(fig: Any) -> bytes:
 
 def _is_discrete(spec: CampaignSpec, key: str, vals: list[Any]) -> bool:
     v = next(x for x in spec.vary if x.key == key)
+    if v.kind in ("uniform", "normal"):
+        return False
     if v.kind in ("choice", "grid", "value") or v.column_kind in ("bool", "str", "json"):
         return True
     return len(set(vals)) <= _DISCRETE_MAX
@@ -170,6 +173,14 @@ def write_report(out_file: str | Path, spec: CampaignSpec, table: Any, meta: str
     from bb2_tools.report import html_page, image_html, table_html
 
     out_file = Path(out_file)
+    fig_dir = out_file.parent / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+
+    def saved(png: bytes, stem: str) -> bytes:
+        safe = "".join(c if c.isalnum() or c in "._-" else "_" for c in stem)
+        (fig_dir / f"{safe}.png").write_bytes(png)
+        return png
+
     status = [s or "error" for s in _values(table, "status")]
     n = len(status)
     counts = {s: status.count(s) for s in STATUS_COLORS if status.count(s)}
@@ -180,20 +191,20 @@ def write_report(out_file: str | Path, spec: CampaignSpec, table: Any, meta: str
     kinds = figure_kinds(spec.target, spec.maneuver, spec.collect)
     numeric = [k for k in spec.collect if kinds[k] == "float" and n and np.isfinite(_floats(table, k)).any()]
     numeric = numeric[:_MAX_FIGURES]
-    inputs = list(spec.input_columns)[:_MAX_INPUTS]
+    inputs = [v.key for v in spec.vary if v.kind != "value"][:_MAX_INPUTS]   # constants tell nothing
     if numeric:
         sections.append(("Figures", table_html(["figure", "n", "mean", "std", "min", "p5", "median", "p95", "max"],
                                                _stats_rows(table, numeric))))
-        sections.append(("Distributions", image_html(_histograms(table, numeric),
+        sections.append(("Distributions", image_html(saved(_histograms(table, numeric), "distributions"),
                                                      "Histograms of the collected figures (finite values).")))
     if numeric and inputs:
-        body = "".join(image_html(_figure_vs_inputs(spec, table, f, inputs, status),
+        body = "".join(image_html(saved(_figure_vs_inputs(spec, table, f, inputs, status), f"{f}_vs_inputs"),
                                   f"{f} against each varied input (colour = status: "
                                   + ", ".join(f"{s} {c}" for s, c in STATUS_COLORS.items()) + ")")
                        for f in numeric)
         sections.append(("Figures against the varied inputs", body))
     if inputs and n:
-        sections.append(("Failure map", image_html(_failure_map(spec, table, inputs, status),
+        sections.append(("Failure map", image_html(saved(_failure_map(spec, table, inputs, status), "failure_map"),
                                                    "Fraction of runs by status against each varied input.")))
         fails = [(i, s, m) for i, s, m in zip(_values(table, "index"), status, _values(table, "message"))
                  if s != "ok"][:50]
