@@ -181,6 +181,11 @@ CONTRACT: tuple[TopicSpec, ...] = (
     TopicSpec("/bb2/autopilot/vh_cmd", "sensor_msgs/msg/JointState", "command", "base_link",
               "rad (position of delta_V, delta_H)", AUTOPILOT, (MIXER, RECORDER),
               "virtual vertical/horizontal plane commands"),
+    TopicSpec("/bb2/sea", "std_msgs/msg/String", "latched", FRAME_NATIVE,
+              "JSON (format bb2_sea/1): the sea: and current: blocks as given (m, s, deg) and the realised wave "
+              "components (amplitude_m, omega_rad_s, direction_rad, phase_rad)", SIM, (RECORDER,),
+              "the sea and current of the run, latched: a run's sea can be rebuilt from its bag alone "
+              "(bb2_sim.environment.environment_from_description)"),
     TopicSpec("/bb2/status", "diagnostic_msgs/msg/DiagnosticArray", "status", "-",
               "key/values (mode, failsafe, rates, overruns)", SIM, (RECORDER,),
               "what the simulator (and each node) is doing"),

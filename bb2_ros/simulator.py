@@ -36,9 +36,15 @@ Parameters (``config/bb2_graph.yaml`` lists them all with their defaults):
 ``exit_at_end``        exit 0 when the duration is reached (else stay up, status ``finished``); a diverged
                        simulation then exits 1 (status ``diverged``, ``error``).
 ``trajectory_csv``     if set, every state ``t, x12`` (native, ``%.17g``) is written to this CSV.
+``sea_file``           "" = the mission's sea and current; else a YAML/JSON file whose ``sea:`` and/or
+                       ``current:`` blocks (the mission file's keys, :mod:`bb2_sim.environment`) replace the
+                       mission's, or a sea description of format ``bb2_sea/1`` (the ``/bb2/sea`` JSON of a bag),
+                       which rebuilds that run's sea exactly.
 ``status_period_s``    wall period of ``/bb2/status``.
 ``warn_throttle_s``    at most one warning of a kind per this many wall seconds.
 ``strict_remaps``      a ``-r`` rule naming no topic of this node is an error (else a warning).
+
+``/bb2/sea`` (latched, once at start) carries the sea and current as JSON, so a bag holds its sea.
 
 ``/clock`` goes to ``t_n+1`` when the step from ``t_n`` starts (the commands of ``t_n`` are in), before the
 integration, so the nodes on sim time handle it while the ROM steps, not when they must answer the state.
@@ -73,7 +79,7 @@ import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from bb2_mission.components import build_simulator, nominal_rps
+from bb2_mission.components import build_model, build_simulator, nominal_rps
 from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, StepDecision,
                                        TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
@@ -85,7 +91,8 @@ from bb2_ros.node_common import (NodeConfigError, Throttle, build_piece, check_r
                                  require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
-              "/bb2/planes/state", "/bb2/propeller/state", "/bb2/status")
+              "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status")
+LATCHED_OUT = ("/bb2/sea",)   # a late reader still gets it: no reason to wait for one before the first step
 TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd")
 TWO_PI = 2.0 * math.pi
 
@@ -130,6 +137,8 @@ class Simulator(Node):
         duration = float(P("duration_s", -1.0, "stop at this sim time (< 0: mission duration; none: run on)"))
         self.exit_at_end = bool(P("exit_at_end", False, "exit 0 when the duration is reached"))
         csv_path = P("trajectory_csv", "", "write t and the native state of every step to this CSV ('' = off)")
+        sea_file = P("sea_file", "", "'' = the mission's sea and current; else a YAML/JSON file with sea: and/or "
+                                     "current: blocks, or a bb2_sea/1 description (a bag's /bb2/sea), replacing them")
         self.min_state_subscribers = int(P("min_state_subscribers", 0,
                                            "wait for this many /bb2/state_native readers before the first step"))
         self._readers_since: float | None = None
@@ -145,7 +154,9 @@ class Simulator(Node):
 
         # this node's pieces only: the ROM at the mission's initial state and the stack's nominal propeller
         self.mission = mission_only(self.mission_file)
-        self.sim = build_piece(self.mission, build_simulator)
+        self.environment = self.mission.environment if not sea_file else load_sea_file(sea_file,
+                                                                                       self.mission.environment)
+        self.sim = build_piece(self.mission, lambda m: build_simulator(m, build_model(m, self.environment)))
         self.terrain = self.mission.terrain
         self.g = float(self.sim.model.params.g)
         self.h = float(self.sim.h)
@@ -177,6 +188,9 @@ class Simulator(Node):
         self._csv = csv.writer(self._csv_fh) if self._csv_fh else None
         if self._csv:
             self._csv.writerow(["t", "x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r"])
+
+        from std_msgs.msg import String
+        self.pub["/bb2/sea"].publish(String(data=self.environment.description_json(self.g)))
 
         self.finished = False
         self.diverged = ""
@@ -258,7 +272,8 @@ class Simulator(Node):
         """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
         after ``startup_timeout_s``), so that a recorder or a test started with the graph misses nothing."""
         n = self.count_subscribers("/bb2/state_native")
-        unread = [t for t in self.pub if self.count_subscribers(t) == 0] if self.wait_for_readers else []
+        unread = [t for t in self.pub if t not in LATCHED_OUT and self.count_subscribers(t) == 0] \
+            if self.wait_for_readers else []
         now = time.monotonic()
         if self.wait_for_readers and not unread:  # every topic read: let the readers' side match too
             self._readers_since = self._readers_since or now
@@ -480,6 +495,36 @@ class Simulator(Node):
             self._dma_fd = None
         if self._csv_fh:
             self._csv_fh.close()
+
+
+def load_sea_file(path: str, mission_env):
+    """The environment of parameter ``sea_file``: a ``bb2_sea/1`` description, or ``sea:``/``current:`` blocks
+    over the mission's (:class:`NodeConfigError` with one line for any fault)."""
+    import json
+    from pathlib import Path
+
+    import yaml
+
+    from bb2_sim.environment import (DESCRIPTION_FORMAT, Environment, current_from_mapping,
+                                     environment_from_description, sea_from_mapping)
+
+    f = Path(path)
+    try:
+        text = f.read_text(encoding="utf-8")
+        doc = json.loads(text) if f.suffix.lower() == ".json" else yaml.safe_load(text)
+    except (OSError, UnicodeDecodeError, ValueError, yaml.YAMLError) as exc:
+        raise NodeConfigError(f"parameter 'sea_file': cannot read {path}: {exc}") from None
+    try:
+        if isinstance(doc, dict) and doc.get("format") == DESCRIPTION_FORMAT:
+            return environment_from_description(doc)
+        if not isinstance(doc, dict) or not ({"sea", "current"} & set(doc)) or set(doc) - {"sea", "current"}:
+            raise ValueError("expected a mapping with sea: and/or current: blocks (only), or a "
+                             f"{DESCRIPTION_FORMAT} description")
+        sea = sea_from_mapping(doc["sea"], base_dir=f.parent) if "sea" in doc else mission_env.sea
+        cur = current_from_mapping(doc["current"]) if "current" in doc else mission_env.current
+        return Environment(sea, cur)
+    except ValueError as exc:
+        raise NodeConfigError(f"parameter 'sea_file' ({path}): {exc}") from None
 
 
 def main(args: Sequence[str] | None = None) -> int:

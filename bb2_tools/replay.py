@@ -28,7 +28,9 @@ recording the deviation is 0 (bit for bit); for a real-time recording it is not,
 each command when it *arrived* on the wall clock, which the bag does not carry exactly.
 
 The mission is ``--mission FILE.yaml`` or, if not given, the ``mission_file`` the simulator reported in
-the recorded ``/bb2/status``.
+the recorded ``/bb2/status``.  The sea and current are the bag's own (the latched ``/bb2/sea`` description,
+rebuilt exactly by :func:`bb2_sim.environment.environment_from_description`) when it has one, so a run in
+waves replays bit for bit even with a sea file or node parameter the mission does not name.
 
 Exit status: 0 done; 1 runtime error; 2 bad input (bag, topics, options); 3 open-loop deviation above
 ``--max-deviation``.
@@ -66,6 +68,7 @@ PROPELLER_CMD = "/bb2/propeller/cmd"
 STATE_NATIVE = "/bb2/state_native"
 ODOM = "/bb2/odom"
 STATUS = "/bb2/status"
+SEA = "/bb2/sea"
 PAUSE_SERVICE = "/bb2_replay/pause"
 NODE_NAME = "bb2_replay"
 
@@ -409,6 +412,23 @@ def _mission_from_status(reader: BagReader) -> str | None:
     return None
 
 
+def environment_from_bag(reader: BagReader):
+    """The sea and current recorded on ``/bb2/sea`` (the last description), or None if the bag has none."""
+    from bb2_sim.environment import environment_from_description
+
+    if SEA not in reader.topics:
+        return None
+    text = None
+    for _, _, msg in reader.messages(SEA):
+        text = msg.data
+    if text is None:
+        return None
+    try:
+        return environment_from_description(text)
+    except ValueError as exc:
+        raise ReplayError(f"the bag's {SEA} is not a sea description: {exc}") from None
+
+
 def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -422,6 +442,7 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
     first recorded state.
     """
     from bb2_mission import build_simulator, load_mission, nominal_rps
+    from bb2_mission.components import build_model
     from bb2_mission.lockstep_gate import CommandLimits, CommandValidator
     from bb2_msgs_py import conversions as cv
     from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT
@@ -450,7 +471,10 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
         mission = load_mission(mission_file)
     except (ValueError, OSError) as exc:
         raise ReplayError(f"mission {mission_file}: {exc}") from None
-    sim = build_simulator(mission)
+    env = environment_from_bag(reader)
+    if env is not None:
+        notes.append(f"sea and current from the bag's {SEA}: {env.summary()}")
+    sim = build_simulator(mission, build_model(mission, env))
     filt = _CommandFilter(CommandValidator(CommandLimits.from_actuators(
         sim.model.params.act, plane_joints=PLANE_JOINTS, propeller_joint=PROPELLER_JOINT, frame_id=FRAME_BASE_LINK)))
     default_rps = nominal_rps(mission)

@@ -1,0 +1,148 @@
+"""Sea state 5 through the ROS graph in lockstep (issue 11): the canyon transit at periscope depth in a short-crested
+JONSWAP sea with a current equals the library runner within 1e-9 m, and the simulator publishes the sea (latched
+``/bb2/sea``) from which the same sea is rebuilt exactly; the node parameter ``sea_file`` replaces the mission's
+sea (here by the bag-format description of another sea) and the graph still equals the runner given that sea.
+"""
+from __future__ import annotations
+
+import json
+import random
+import signal
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
+
+from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
+
+from rosenv import spawn_node  # noqa: E402  (tests/rosenv.py)
+
+REPO = Path(__file__).resolve().parents[2]
+PARAMS = REPO / "config" / "bb2_graph.yaml"
+CONTROLLERS = ("bb2_ros.planner", "bb2_ros.path_following", "bb2_ros.l1_autopilot", "bb2_ros.mixer")
+DURATION_S = 15.0
+
+
+class SeaListener:
+    """The latched /bb2/sea, received by a reader that may come late."""
+
+    def __init__(self, domain_id: int):
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, domain_id=domain_id)
+        self.node = rclpy.create_node("sea_test", context=self.ctx)
+        self.sea: list[str] = []
+        self.node.create_subscription(message_class("std_msgs/msg/String"), "/bb2/sea",
+                                      lambda m: self.sea.append(m.data), qos_profile("/bb2/sea"))
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def close(self) -> None:
+        self._stop.set()
+        self.thread.join(2)
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.ctx)
+
+
+def _library_trajectory(mission_file: Path, environment=None) -> np.ndarray:
+    from bb2_mission import MissionRunner, build_model, load_mission
+
+    m = load_mission(mission_file)
+    runner = MissionRunner(m, model=build_model(m, environment)) if environment is not None else MissionRunner(m)
+    xs = [np.r_[runner.sim.t, runner.sim.x]]
+    while not runner.done:
+        runner.step()
+        xs.append(np.r_[runner.sim.t, runner.sim.x])
+    return np.array(xs)
+
+
+def _run_graph(tmp_path: Path, mission: Path, domain_id: int, extra: str = "") -> tuple[np.ndarray, list[str]]:
+    """Fly ``mission`` through the five nodes in lockstep; the simulator's trajectory and the /bb2/sea it
+    latched (read by a listener that joins while the graph runs)."""
+    csv_file = tmp_path / "traj.csv"
+    common = ["--params-file", str(PARAMS), "-p", f"mission_file:={mission}", "-p", "status_period_s:=0.5"]
+    procs = {m: spawn_node(m, domain_id, *common) for m in CONTROLLERS}
+    sim = None
+    listener = None
+    try:
+        overrides = tmp_path / "overrides.yaml"
+        overrides.write_text(f"simulator:\n  ros__parameters:\n    trajectory_csv: {csv_file}\n"
+                             f"    exit_at_end: true\n    min_state_subscribers: 2\n"
+                             f"    lockstep_timeout_s: 20.0\n{extra}")   # a loaded machine never steps on held
+        sim = spawn_node("bb2_ros.simulator", domain_id, *common, "--params-file", str(overrides))
+        listener = SeaListener(domain_id)   # joins late (the sea was published at start): transient local
+        out, _ = sim.communicate(timeout=150)
+        assert sim.returncode == 0, out
+        assert "lockstep timeout" not in out and "no answer to step" not in out, out
+        for m, p in procs.items():
+            assert p.poll() is None, f"{m} died: {p.communicate()[0]}"
+    finally:
+        for p in procs.values():
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        codes = {m: p.wait(10) for m, p in procs.items()}
+        if sim is not None and sim.poll() is None:
+            sim.kill()
+        seen = list(listener.sea) if listener is not None else []
+        if listener is not None:
+            listener.close()
+    assert codes == {m: 0 for m in CONTROLLERS}, codes
+    return np.loadtxt(csv_file, delimiter=",", skiprows=1), seen
+
+
+def _assert_equal_runs(traj: np.ndarray, ref: np.ndarray) -> None:
+    assert traj.shape == ref.shape == (int(round(DURATION_S / 0.05)) + 1, 13)
+    np.testing.assert_array_equal(traj[:, 0], ref[:, 0])
+    assert np.max(np.abs(traj[:, 1:4] - ref[:, 1:4])) <= 1e-9
+    assert np.max(np.abs(traj[:, 4:] - ref[:, 4:])) <= 1e-9
+
+
+def test_graph_in_sea_state_5_equals_library_runner_and_latches_the_sea(tmp_path):
+    from bb2_mission import load_mission
+    from bb2_sim.environment import environment_from_description
+
+    mission = tmp_path / "periscope_short.yaml"
+    mission.write_text(f"extends: {REPO / 'missions' / 'canyon_periscope_ss5.yaml'}\nduration_s: {DURATION_S}\n")
+    ref = _library_trajectory(mission)
+    traj, seen = _run_graph(tmp_path, mission, random.randint(100, 230))
+    _assert_equal_runs(traj, ref)
+    assert np.ptp(ref[:, 4]) > 0.01            # the waves roll the boat (phi, rad)
+
+    assert seen, "no /bb2/sea received"
+    d = json.loads(seen[-1])
+    env = load_mission(mission).environment
+    assert d == json.loads(env.description_json())
+    rebuilt = environment_from_description(seen[-1]).sea.wave_components()
+    ours = env.sea.wave_components()
+    for f in ("amplitude", "omega", "direction", "phase"):
+        assert np.array_equal(getattr(rebuilt, f), getattr(ours, f))
+
+
+def test_sea_file_parameter_replaces_the_mission_sea(tmp_path):
+    from bb2_sim.environment import Environment, environment_from_description
+
+    mission = tmp_path / "periscope_short.yaml"
+    mission.write_text(f"extends: {REPO / 'missions' / 'canyon_periscope_ss5.yaml'}\nduration_s: {DURATION_S}\n")
+    # a sea whose plane commands stay within the +-30 deg plane limit: beyond it the graph's lockstep gate clamps
+    # the commands and the library runner does not, and the runs part once a rate limiter runs past 30 deg
+    other = Environment.from_mappings({"spectrum": "ittc", "hs": 1.0, "tp": 8.0, "heading_deg": 0.0,
+                                       "components": 12, "seed": 1}, {"speed_mps": 0.2, "heading_deg": 90.0})
+    sea_file = tmp_path / "sea.json"
+    sea_file.write_text(other.description_json())
+    ref = _library_trajectory(mission, environment_from_description(sea_file.read_text()))
+    traj, seen = _run_graph(tmp_path, mission, random.randint(100, 230), f"    sea_file: {sea_file}\n")
+    _assert_equal_runs(traj, ref)
+    assert seen and json.loads(seen[-1])["sea"]["components"]["amplitude_m"] == \
+        [float(a) for a in other.sea.wave_components().amplitude]
