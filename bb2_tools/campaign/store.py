@@ -32,7 +32,7 @@ RESULTS_CSV = "results.csv"
 CAMPAIGN_YAML = "campaign.yaml"
 REPORT_HTML = "report.html"
 _FSYNC_EVERY_S = 1.0
-_CHUNK = 20_000
+_CHUNK = 5_000
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
@@ -57,20 +57,26 @@ class Journal:
         self._last_sync = 0.0
 
     def recover(self) -> set[int]:
-        """Cut a torn last line off and return the indices recorded (each line a complete JSON row)."""
+        """Cut a torn last line off and return the indices recorded (each line a complete JSON row; streamed)."""
         if not self.path.exists():
             return set()
-        data = self.path.read_bytes()
-        end = data.rfind(b"\n") + 1
-        if end < len(data):
-            with open(self.path, "r+b") as fh:
+        with open(self.path, "r+b") as fh:
+            size = fh.seek(0, os.SEEK_END)
+            end = size
+            while end > 0:                      # the last newline, read backwards in blocks
+                start = max(0, end - 65536)
+                fh.seek(start)
+                block = fh.read(end - start)
+                k = block.rfind(b"\n")
+                if k >= 0:
+                    end = start + k + 1
+                    break
+                end = start
+            if end < size:
                 fh.truncate(end)
                 fh.flush()
                 os.fsync(fh.fileno())
-        done: set[int] = set()
-        for row in self._rows(data[:end].splitlines()):
-            done.add(int(row["index"]))
-        return done
+        return {int(row["index"]) for row in self.rows()}
 
     @staticmethod
     def _rows(lines: Any) -> Iterator[dict[str, Any]]:

@@ -306,3 +306,16 @@ def test_maneuver_campaign_collects_the_printed_figures(tmp_path):
     assert row["status"] == "ok" and row["rudder_deg"] == 20 and res.settings.rudder_deg == 20
     assert math.isclose(row["peak_roll_deg"], math.degrees(row["peak_roll_rad"]), rel_tol=1e-15)
     shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+def test_a_torn_last_journal_line_is_cut_off_on_resume(tmp_path):
+    from bb2_tools.campaign.store import Journal
+
+    j = Journal(tmp_path / "runs.jsonl")
+    for i in (0, 2, 1):
+        j.append({"index": i, "status": "ok", "x": float("nan")})
+    j.close()
+    with open(j.path, "ab") as fh:
+        fh.write(b'{"index": 7, "sta')
+    assert Journal(j.path).recover() == {0, 1, 2}
+    assert j.path.read_text().endswith("}\n") and '"x": null' in j.path.read_text()
