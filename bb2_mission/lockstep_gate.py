@@ -33,8 +33,8 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["TimeMode", "Counter", "CommandLimits", "Verdict", "CommandValidator", "StepDecision", "WatchdogAction",
-           "GateTimings", "LockstepGate"]
+__all__ = ["TimeMode", "Counter", "CommandLimits", "clamp_planes_deg", "clamp_rps", "Verdict", "CommandValidator",
+           "StepDecision", "WatchdogAction", "GateTimings", "LockstepGate"]
 
 
 class TimeMode(StrEnum):
@@ -57,6 +57,18 @@ class Counter(StrEnum):
     LOCKSTEP_TIMEOUTS = "lockstep_timeouts"
     LOCKSTEP_RESENDS = "lockstep_resends"
     FAILSAFE_STEPS = "failsafe_steps"
+
+
+def clamp_planes_deg(planes_deg: np.ndarray, limit_deg: float) -> np.ndarray:
+    """Plane commands clamped to the ROM's plane limit (what reaches the actuators; the gate's and the
+    library runner's one rule, so the graph and the runner integrate the same commands)."""
+    return np.clip(planes_deg, -limit_deg, limit_deg)
+
+
+def clamp_rps(rps: float, limits: tuple[float, float]) -> float:
+    """A propeller command clamped to the ROM's rps limits."""
+    lo, hi = limits
+    return min(max(rps, lo), hi)
 
 
 @dataclass(frozen=True)
@@ -148,7 +160,7 @@ class CommandValidator:
         deg = np.degrees(rad)
         lim = self.limits.plane_limit_deg
         if np.any(np.abs(deg) > lim):
-            return Verdict(np.clip(deg, -lim, lim), Counter.CLAMPED, "clamp_planes",
+            return Verdict(clamp_planes_deg(deg, lim), Counter.CLAMPED, "clamp_planes",
                            f"plane command {np.round(deg, 3).tolist()} deg beyond +-{lim:g} deg: clamped", True)
         return Verdict(deg)
 
@@ -169,7 +181,7 @@ class CommandValidator:
         rps = omega / (2.0 * math.pi)
         lo, hi = self.limits.rps_limits
         if not lo <= rps <= hi:
-            return Verdict(min(max(rps, lo), hi), Counter.CLAMPED, "clamp_prop",
+            return Verdict(clamp_rps(rps, (lo, hi)), Counter.CLAMPED, "clamp_prop",
                            f"propeller command {rps:.4g} rps outside [{lo:g}, {hi:g}]: clamped", True)
         return Verdict(rps)
 

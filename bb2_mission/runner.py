@@ -6,6 +6,10 @@ The tick (``Ts = 0.05 s``, the ROM's major step), which a ROS graph in lockstep 
     out_n   = stack.step(state_n)                            # guidance -> L1 + autopilot -> mixer
     rec_n   = sim.step(out_n.planes_deg, out_n.rps)          # ROM ode3 step, commands held over [t_n, t_n+1)
 
+The commands reach the ROM clamped to its plane and rps limits by the lockstep gate's rule
+(:func:`~bb2_mission.lockstep_gate.clamp_planes_deg`), exactly as they do through the graph; the CSV keeps the
+stack's own commands (``cmd_d*_deg``, ``rps_cmd``) and the actuator outputs (``d*_deg``, ``n_rps``).
+
 The terrain checks (grounding, broaching) look at ``state_n`` before the ROM step; they never feed back
 into the loop, so a ROS graph that omits them still produces the same trajectory.
 """
@@ -22,6 +26,7 @@ import numpy as np
 from bb2_planner.bernstein import BernsteinPath
 
 from bb2_mission.components import mission_components, terrain_elevation
+from bb2_mission.lockstep_gate import clamp_planes_deg, clamp_rps
 from bb2_mission.records import MissionRow, rows_to_columns
 from bb2_mission.schema import Mission, load_mission
 from bb2_mission.summary import EndReason, MissionEvent, MissionSummary, summarize
@@ -72,6 +77,9 @@ class MissionRunner:
         self.sim, self.stack = self.c.simulator, self.c.stack
         self.terrain = mission.terrain
         self.n_steps = int(math.floor(mission.duration / self.sim.h + 1e-9))
+        act = self.sim.model.params.act   # the commands reach the ROM clamped, as through the graph's gate
+        self._plane_limit_deg = float(act["plane_limit_deg"])
+        self._rps_limits = (float(act["rps_limits"][0]), float(act["rps_limits"][1]))
         self.done = False
         self.event: MissionEvent | None = None
         self.end_reason = EndReason.RUNNING
@@ -120,7 +128,8 @@ class MissionRunner:
         rec = None
         if event is None:
             try:
-                rec = sim.step(out.planes_deg, out.rps)
+                rec = sim.step(clamp_planes_deg(out.planes_deg, self._plane_limit_deg),
+                               clamp_rps(out.rps, self._rps_limits))
             except NonFiniteStateError as e:
                 event = MissionEvent(EndReason.DIVERGED, sim.t, x[0:3].copy(), str(e))
         row = self._row(state, x, out, rec, tz, cl, hull)

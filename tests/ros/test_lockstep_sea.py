@@ -56,14 +56,16 @@ class SeaListener:
         rclpy.shutdown(context=self.ctx)
 
 
-def _library_trajectory(mission_file: Path, environment=None) -> np.ndarray:
+def _library_trajectory(mission_file: Path, environment=None, commands: list | None = None) -> np.ndarray:
     from bb2_mission import MissionRunner, build_model, load_mission
 
     m = load_mission(mission_file)
     runner = MissionRunner(m, model=build_model(m, environment)) if environment is not None else MissionRunner(m)
     xs = [np.r_[runner.sim.t, runner.sim.x]]
     while not runner.done:
-        runner.step()
+        st = runner.step()
+        if commands is not None and st.output is not None:
+            commands.append(np.asarray(st.output.planes_deg, float))
         xs.append(np.r_[runner.sim.t, runner.sim.x])
     return np.array(xs)
 
@@ -135,13 +137,15 @@ def test_sea_file_parameter_replaces_the_mission_sea(tmp_path):
 
     mission = tmp_path / "periscope_short.yaml"
     mission.write_text(f"extends: {REPO / 'missions' / 'canyon_periscope_ss5.yaml'}\nduration_s: {DURATION_S}\n")
-    # a sea whose plane commands stay within the +-30 deg plane limit: beyond it the graph's lockstep gate clamps
-    # the commands and the library runner does not, and the runs part once a rate limiter runs past 30 deg
-    other = Environment.from_mappings({"spectrum": "ittc", "hs": 1.0, "tp": 8.0, "heading_deg": 0.0,
+    # a sea rough enough that the stack commands planes beyond the ROM's +-30 deg limit: the graph's lockstep gate
+    # and the library runner clamp them by the same rule, so the runs stay equal
+    other = Environment.from_mappings({"spectrum": "ittc", "hs": 3.25, "tp": 9.7, "heading_deg": 0.0,
                                        "components": 12, "seed": 1}, {"speed_mps": 0.2, "heading_deg": 90.0})
     sea_file = tmp_path / "sea.json"
     sea_file.write_text(other.description_json())
-    ref = _library_trajectory(mission, environment_from_description(sea_file.read_text()))
+    commands: list = []
+    ref = _library_trajectory(mission, environment_from_description(sea_file.read_text()), commands)
+    assert np.max(np.abs(commands)) > 30.0, "the sea should drive the plane commands past the limit"
     traj, seen = _run_graph(tmp_path, mission, random.randint(100, 230), f"    sea_file: {sea_file}\n")
     _assert_equal_runs(traj, ref)
     assert seen and json.loads(seen[-1])["sea"]["components"]["amplitude_m"] == \
