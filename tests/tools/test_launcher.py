@@ -345,6 +345,29 @@ def _result(stdout: str) -> dict:
     return json.loads(line[-1][len("RESULT "):])
 
 
+def _wait_until_discovered(domain: int, topic: str, *, reader: str, writer: str, timeout: float = 60.0) -> None:
+    """Poll a probe participant on ``domain`` until it sees node ``reader`` subscribed to and node ``writer``
+    publishing ``topic``."""
+    import rclpy
+    from rclpy.context import Context
+
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    probe = rclpy.create_node("discovery_probe", context=ctx)
+    try:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < timeout:
+            subs = {i.node_name for i in probe.get_subscriptions_info_by_topic(topic)}
+            pubs = {i.node_name for i in probe.get_publishers_info_by_topic(topic)}
+            if reader in subs and writer in pubs:
+                return
+            time.sleep(0.1)
+        raise AssertionError(f"{reader} reading / {writer} writing {topic} not discovered in {timeout:g} s")
+    finally:
+        probe.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
 def _wait_for_line(p: subprocess.Popen, pred, timeout: float = 30.0) -> str:
     """Read the driver's stderr until a line satisfies ``pred``; return what was read."""
     seen, t0 = [], time.monotonic()
@@ -396,7 +419,10 @@ def test_sigint_stops_everything_cleanly_recorder_last(graph):
     p = graph.run([rec, graph.node("a", "--clock"), graph.node("b")], first=["recorder"])
     pids = _pids(graph, "ab")
     seen = _wait_for_line(p, lambda line: "| progress" in line and "sim --" not in line)
-    time.sleep(2.0)  # the recorder discovers the publishers on its own (the monitor is another participant)
+    # the recorder discovers the publishers on its own (the monitor is another participant): wait until a third
+    # participant sees the recorder reading /clock and the fake node writing it (slow on a loaded machine)
+    _wait_until_discovered(graph.domain, "/clock", reader="bb2_recorder", writer="fake_a")
+    time.sleep(1.0)
     p.send_signal(signal.SIGINT)
     out, err = p.communicate(timeout=40)
     err = seen + err
