@@ -245,13 +245,14 @@ def test_replay_republishes_recorded_odometry_with_pause_offset_and_filter(recor
     gaps = np.diff(walls)
     assert gaps.max() > 1.0  # the pause
     # paced at --rate 0.5 over DDS: the recorded span took twice as long in send times (less the pause). A
-    # replayer can only fall behind its clock, never run ahead of it, so the lower bound holds under any load;
-    # the upper one is loose (a loaded machine may delay sends)
+    # replayer can only fall behind its clock, never run ahead of it; but on a loaded machine the first message
+    # itself may go out late, which shortens the measured span by as much: 0.5 s of slack below (a rate of 1 or
+    # even 0.6 would still fail by far), the upper bound loose (a loaded machine may delay sends)
     log_s = np.array([want[k].log_time_ns for k in idx]) * 1e-9
     log_span_s, period_s = log_s[-1] - log_s[0], np.diff(log_s).max()
     played_s = walls[-1] - walls[0] - gaps.max()  # less the pause (and the one recorded period it spans)
     assert log_span_s > 1.0
-    assert (log_span_s - period_s) / 0.5 - 0.02 <= played_s <= log_span_s / 0.5 + 3.0, (played_s, log_span_s)
+    assert (log_span_s - period_s) / 0.5 - 0.5 <= played_s <= log_span_s / 0.5 + 3.0, (played_s, log_span_s)
 
 
 def test_replay_service_pause_loop_and_clean_sigint(recorded):
