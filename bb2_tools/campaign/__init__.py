@@ -34,8 +34,9 @@ stack gain can be varied.  A stack given by name becomes ``{base: NAME}`` first,
 ``stack.autopilot.K_q_deg_per_radps`` or ``stack.guidance.d_m`` overrides one gain of the named stack.
 Maneuvers: the keys are the maneuver settings of ``bb2_sim.maneuvers.ManeuverSettings`` (``rudder_deg``,
 ``speed_mps``, ``depth``, ``sea_state``, ``profile``, ``duration``, ...).  Before flying, every varied key is
-checked alone, run 0 is built, and every value of each choice / grid is checked: a bad key stops the
-campaign at once, naming it.
+set, run 0 is built (a failure names the key that alone gives the same fault, else the mission's own message
+names the field), and every value of each choice / grid is checked on run 0: a bad key stops the campaign at
+once.
 
 **Figures** (:mod:`bb2_tools.campaign.figures`): those ``bb2-sim mission`` / ``bb2-sim maneuver`` print,
 same values for the same inputs; mission summary fields by name (``rms_vertical_m``) or without the unit

@@ -178,29 +178,41 @@ def _check(spec: CampaignSpec, doc: dict[str, Any], what: str, *, build: bool = 
 
 
 def probe(spec: CampaignSpec, max_values: int = 12) -> None:
-    """Check the SPEC against the mission (or maneuver) before flying: each varied key alone, then run 0
-    (built as far as the runner), then every value of each choice / grid key (at most ``max_values`` each).
-    Raises :class:`SpecError` naming the key."""
+    """Check the SPEC against the mission (or maneuver) before flying: the base alone, run 0 (built as far as
+    the runner; if it fails, the varied key that alone gives the same fault is named), then every value of each
+    choice / grid key on run 0 (at most ``max_values`` each).  Raises :class:`SpecError` naming the key."""
     import copy
 
     from bb2_tools.campaign.spec import set_dotted
 
     _check(spec, copy.deepcopy(spec.base), "mission" if spec.target == "mission" else "maneuver.options")
     first = spec.inputs(0)
-    for v in spec.vary:
-        doc = copy.deepcopy(spec.base)
+    for v in spec.vary:                       # structure: every key can be set
         try:
-            set_dotted(doc, v.key, first[v.key])
+            set_dotted(copy.deepcopy(spec.base), v.key, copy.deepcopy(first[v.key]))
         except SpecError as e:
             raise SpecError(f"vary.{v.key}: {e}") from None
-        _check(spec, doc, f"vary.{v.key} = {first[v.key]!r}")
+    if spec.seed_key:
+        try:
+            set_dotted(copy.deepcopy(spec.base), spec.seed_key, 0)
+        except SpecError as e:
+            raise SpecError(f"seed_key: {e}") from None
+    try:
+        _check(spec, spec.document(0), "vary (run 0)", build=True)
+    except SpecError as together:
+        why = str(together).split(": ", 1)[-1]
+        for v in spec.vary:                   # name the key that alone gives the same fault, if one does
+            doc = copy.deepcopy(spec.base)
+            set_dotted(doc, v.key, copy.deepcopy(first[v.key]))
+            try:
+                _check(spec, doc, f"vary.{v.key} = {first[v.key]!r}")
+            except SpecError as alone:
+                if str(alone).split(": ", 1)[-1] == why:
+                    raise alone from None
+        raise together from None
+    for v in spec.vary:
         if v.kind in ("choice", "grid"):
             for val in v.params[1:max_values]:
                 d2 = spec.document(0)
                 set_dotted(d2, v.key, copy.deepcopy(val))
                 _check(spec, d2, f"vary.{v.key} = {val!r}")
-    if spec.seed_key:
-        doc = copy.deepcopy(spec.base)
-        set_dotted(doc, spec.seed_key, spec.run_seed(0))
-        _check(spec, doc, f"seed_key {spec.seed_key}")
-    _check(spec, spec.document(0), "run 0", build=True)

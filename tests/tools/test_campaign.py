@@ -1,7 +1,8 @@
 """``bb2-campaign`` (issue 14) on small campaigns of short missions.
 
 * the same results (to the last digit, wall time aside) from the local pool with 1 and 2 workers and from Ray
-  on a real local cluster started here (a head and a second node, bound to 127.0.0.1);
+  on a real local cluster started here (a head and a second node, ``--node-ip-address=127.0.0.1``; Ray 2.60 maps
+  a loopback address to this machine's own address, so both raylets listen there, on this machine only);
 * a driver SIGKILLed mid-campaign and resumed gives exactly the full set, no duplicates;
 * a broken run is recorded as ``error`` with its message, and the campaign goes on;
 * a malformed SPEC exits 2 with one line naming the field;
@@ -57,6 +58,7 @@ def _env() -> dict[str, str]:
     env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
     env.setdefault("MPLBACKEND", "Agg")
     env["RAY_USAGE_STATS_ENABLED"] = "0"
+    env["RAY_AUTH_MODE"] = "disabled"   # the test cluster is on 127.0.0.1; not whatever ~/.ray/auth_token says
     return env
 
 
@@ -182,7 +184,8 @@ def _stop(p: subprocess.Popen) -> None:
 
 @pytest.fixture(scope="module")
 def ray_cluster(tmp_path_factory):
-    """A real two-node Ray cluster on this machine: a head and a second raylet, 1 CPU each, on 127.0.0.1."""
+    """A real two-node Ray cluster on this machine: a head and a second raylet, 1 CPU each, started with
+    --node-ip-address=127.0.0.1 (which Ray resolves to this machine's address), token auth off."""
     pytest.importorskip("ray")
     port = _free_port()
     env = _env()
