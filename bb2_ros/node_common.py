@@ -248,6 +248,10 @@ def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str]
     Exit status: 0 clean stop, 2 bad params file / parameter / mission, 1 runtime error (e.g. the
     simulation diverged).
     """
+    from bb2_msgs_py.ros_env import ros_environment_or_error
+
+    if (bad := ros_environment_or_error(name)) is not None:  # called directly from the venv: find ROS itself
+        return bad
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 

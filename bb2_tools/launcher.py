@@ -434,6 +434,12 @@ def _main(argv: Sequence[str] | None) -> int:
             print(f"bb2-launch: error: {ws} not found (run from a source checkout)", file=sys.stderr)
             return 2
         return subprocess.call([sys.executable, str(ws)])
+    from bb2_msgs_py.ros_env import ros_environment_or_error
+
+    # called directly from the venv (not through run.sh): the venv's ament prefix and middleware, before the
+    # ament index is read; the nodes inherit them
+    if (bad := ros_environment_or_error("bb2-launch")) is not None:
+        return bad
     try:
         if args.mission is None:
             raise LaunchError("a mission file is required")
@@ -463,8 +469,6 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"bb2-launch: error: {exc}", file=sys.stderr)
         return 2
 
-    os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-    os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
     try:
         monitor = (GraphMonitor(args.domain_id, end_at=args.end_at) if args.domain_id is not None
                    else free_domain_id(end_at=args.end_at))

@@ -253,6 +253,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
+    from bb2_msgs_py.ros_env import ros_environment_or_error
+
+    if (bad := ros_environment_or_error("bb2-record")) is not None:  # called directly: find ROS itself
+        return bad
     argv = list(sys.argv[1:] if argv is None else argv)
     args, ros_argv = _parse(argv)
     try:

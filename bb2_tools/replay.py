@@ -618,6 +618,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``bb2-replay``; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     args = _parser().parse_args(argv)
+    from bb2_msgs_py.ros_env import ros_environment_or_error
+
+    if (bad := ros_environment_or_error("bb2-replay")) is not None:
+        return bad
     if not (args.start_offset >= 0 and math.isfinite(args.start_offset)):
         return _error(f"--start-offset must be >= 0 s, got {args.start_offset}")
     if args.open_loop:

@@ -1,0 +1,82 @@
+"""Issue 13 (5): every console script works when called directly from the virtual environment, with no ROS
+variable set (not through run.sh): it finds the venv's ament prefix and the middleware itself, or says in one
+line what to set."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bb2_msgs_py.ros_env import RosEnvironmentError, ensure_ros_environment
+
+REPO = Path(__file__).resolve().parents[2]
+VENV_BIN = Path(sys.prefix) / "bin"
+
+
+def bare_env(**extra: str) -> dict[str, str]:
+    """What a user's shell has before anything ROS is sourced: no AMENT_PREFIX_PATH, no RMW_IMPLEMENTATION."""
+    env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root"), "MPLBACKEND": "Agg",
+           "PYTHONDONTWRITEBYTECODE": "1", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    env.update(extra)
+    return env
+
+
+def test_ensure_ros_environment_fills_in_the_venv_prefix_and_middleware(tmp_path):
+    index = tmp_path / "share" / "ament_index" / "resource_index" / "packages"
+    index.mkdir(parents=True)
+    for pkg in ("rclpy", "rmw_fastrtps_cpp"):
+        (index / pkg).write_text("")
+    env: dict[str, str] = {}
+    assert ensure_ros_environment(env, prefix=tmp_path) == [f"AMENT_PREFIX_PATH={tmp_path}",
+                                                             "RMW_IMPLEMENTATION=rmw_fastrtps_cpp"]
+    assert env == {"AMENT_PREFIX_PATH": str(tmp_path), "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}
+    mine = {"AMENT_PREFIX_PATH": "/opt/ros/jazzy", "RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp"}
+    assert ensure_ros_environment(mine, prefix=tmp_path) == [] and mine["AMENT_PREFIX_PATH"] == "/opt/ros/jazzy"
+    with pytest.raises(RosEnvironmentError, match="AMENT_PREFIX_PATH is not set .* source /opt/ros/jazzy"):
+        ensure_ros_environment({}, prefix=tmp_path / "nothing")
+
+
+@pytest.mark.ros
+def test_console_scripts_run_directly_from_the_venv(tmp_path):
+    """bb2-launch flies a short mission and records it, bb2-analyze and bb2-replay read the bag, and a node's
+    executable (<venv>/lib/bb2_ros/simulator, what ros2 run starts) runs: all without any ROS variable set."""
+    mission = tmp_path / "short.yaml"
+    mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nname: short\nduration_s: 2\n")
+    r = subprocess.run([str(VENV_BIN / "bb2-launch"), str(mission), "--out", str(tmp_path / "run"),
+                        "--timeout", "120"], cwd=tmp_path, env=bare_env(), capture_output=True, text=True,
+                       timeout=180)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "mission complete" in r.stderr and (tmp_path / "run" / "metadata.yaml").is_file()
+    r = subprocess.run([str(VENV_BIN / "bb2-analyze"), str(tmp_path / "run"), "--out", str(tmp_path / "an")],
+                       cwd=tmp_path, env=bare_env(), capture_output=True, text=True, timeout=180)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert (tmp_path / "an" / "report.html").is_file()
+    r = subprocess.run([str(VENV_BIN / "bb2-replay"), str(tmp_path / "run"), "--rate", "50", "--topics",
+                        "/bb2/mission/progress"], cwd=tmp_path, env=bare_env(ROS_DOMAIN_ID="231"),
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "published" in r.stderr + r.stdout
+    exe = Path(sys.prefix) / "lib" / "bb2_ros" / "simulator"
+    if not exe.is_file():
+        pytest.skip(f"{exe} not installed (bb2_ros_ws/install_into_venv.py)")
+    r = subprocess.run([str(exe), "--ros-args", "-p", f"mission_file:={REPO / 'missions' / 'canyon.yaml'}",
+                        "-p", "time_mode:=realtime", "-p", "rate_hz:=200.0", "-p", "duration_s:=0.5",
+                        "-p", "exit_at_end:=true", "-p", "realtime_priority:=0", "-p", "hold_cpu_dma_latency:=false"],
+                       cwd=tmp_path, env=bare_env(ROS_DOMAIN_ID="231"), capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "mission duration reached" in r.stderr + r.stdout
+
+
+def test_a_venv_without_ros_says_what_to_set_in_one_line(tmp_path):
+    """A copy of the interpreter with no ament index beside it (a prefix without the ROS wheels)."""
+    env = bare_env(PYTHONPATH=str(REPO))
+    r = subprocess.run([sys.executable, "-c",
+                        "import sys, bb2_msgs_py.ros_env as e; sys.prefix = '/nonexistent'; "
+                        "from bb2_tools.launcher import main; sys.exit(main(['x.yaml']))"],
+                       env=env, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("bb2-launch: error: no ROS 2 environment"), r.stderr
