@@ -50,6 +50,10 @@ suffix (``rms_vertical``); maneuver figures by field name (SI, radians), without
 ``results.parquet`` and ``results.csv`` (one row per run, by index: ``index, seed``, every varied key, every
 collected figure, ``status, message, wall_time_s``; NaN is null / empty), ``campaign.yaml`` (the resolved
 SPEC and the software version) and ``report.html``.
+
+**Engines** (:mod:`bb2_tools.campaign.engines`): ``local`` (a process pool) or ``ray`` (a Ray cluster); the
+default worker is the library runner (:mod:`bb2_tools.campaign.worker`, no ROS); ``--graph`` flies each run
+through the ROS 2 graph in lockstep on its own domain (:mod:`bb2_tools.campaign.graph`).
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """``bb2-campaign``: fly a Monte Carlo / grid campaign of missions or maneuvers (see :mod:`bb2_tools.campaign`).
 
-    bb2-campaign SPEC.yaml [--out DIR] [--engine local|ray] [--address ADDR] [--workers N] [--resume]
+    bb2-campaign SPEC.yaml [--out DIR] [--engine local|ray] [--address ADDR] [--workers N] [--resume] [--graph]
     bb2-campaign SPEC.yaml --only INDEX --out-run DIR
 
 Exit status: 0 every run recorded (whatever their status), 2 bad input (one line naming the field), 130
@@ -59,6 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="finish exactly the runs missing from DIR")
     p.add_argument("--only", type=_index, metavar="INDEX", help="fly run INDEX alone (needs --out-run)")
     p.add_argument("--out-run", metavar="DIR", help="--only: where that run's CSV, figures and row go")
+    p.add_argument("--graph", action="store_true",
+                   help="each run flies the full ROS 2 graph in lockstep on its own ROS_DOMAIN_ID and records its "
+                        "bag (DIR/graph/<index>/); default: the library runner")
     p.add_argument("--no-report", action="store_true", help="skip report.html")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -77,6 +80,8 @@ def main(argv: list[str] | None = None) -> int:
         return _fail("--out-run DIR goes with --only INDEX")
     if a.address and a.engine != "ray":
         return _fail("--address goes with --engine ray")
+    if a.graph and a.only is not None:
+        return _fail("--graph goes with a campaign, not --only (fly one run through the graph with bb2-launch)")
     from bb2_tools.campaign.spec import load_spec
     from bb2_tools.campaign.worker import probe
 
@@ -90,6 +95,10 @@ def main(argv: list[str] | None = None) -> int:
     if a.only is not None:
         return _run_only(spec, a.only, Path(a.out_run))
     out = Path(a.out) if a.out else Path("out") / "campaigns" / spec.name
+    if a.graph:
+        if spec.target != "mission":
+            return _fail(f"{a.spec}: --graph flies missions only (maneuvers have no graph)")
+        spec.graph_dir = str((out / "graph").resolve())
     return _run_campaign(spec, out, a)
 
 

@@ -220,6 +220,7 @@ class CampaignSpec:
     seed_key: str | None = None
     description: str = ""
     spec_file: str | None = None
+    graph_dir: str | None = None          #: --graph: each run flies the ROS graph, bags under this directory
     _unit: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     # -- the design
@@ -308,6 +309,8 @@ class CampaignSpec:
                  vary={v.key: v.to_doc() for v in self.vary}, collect=list(self.collect))
         if self.seed_key:
             d["seed_key"] = self.seed_key
+        if self.graph_dir:
+            d["graph"] = True
         d["runs"] = self.n_runs
         return d
 

@@ -55,7 +55,11 @@ def run_one(spec: CampaignSpec, index: int, *, on_row: Callable[[Any], None] | N
     status, message, result = "error", "", None
     try:
         doc = spec.document(index)
-        if spec.target == "mission":
+        if spec.graph_dir:
+            from bb2_tools.campaign.graph import run_graph_once
+
+            status, message, figures = run_graph_once(spec, index, doc, spec.graph_dir)
+        elif spec.target == "mission":
             status, message, figures, result = _fly_mission(spec, doc, on_row)
         else:
             status, message, figures, result = _fly_maneuver(spec, doc, on_row)

@@ -372,3 +372,26 @@ def test_a_sigkilled_worker_loses_no_run(reference):
 
     got = pa.Table.from_pylist([by_index[i] for i in range(N_RUNS)], schema=results_schema(spec))
     assert _comparable(got) == _comparable(_table(reference))
+
+
+@pytest.mark.ros
+def test_graph_runs_fly_the_ros_graph_and_equal_the_library_runner(tmp_path):
+    """--graph: two runs, each the whole lockstep graph on its own ROS_DOMAIN_ID with its bag, at the same time;
+    their figures (bb2-analyze of the bag) equal the library runner's to the last digit."""
+    pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
+    from bb2_tools.campaign.worker import run_one
+
+    doc = {"mission": "circle", "seed": 1, "vary": {"duration_s": 3, "adaptation": [True, False]},
+           "collect": ["rms_vertical", "rms_horizontal", "max_vertical_m", "mission_time_s"]}
+    f = _write_spec(tmp_path / "g.yaml", doc)
+    r = _campaign(str(f), "--out", str(tmp_path / "g"), "--graph", "--workers", "2", timeout=400)
+    assert r.returncode == 0, r.stderr
+    rows = _table(tmp_path / "g").to_pylist()
+    spec = parse_spec(doc)
+    for r in rows:
+        assert r["status"] == "ok", r["message"]
+        lib = run_one(spec, r["index"])[0]
+        assert {k: r[k] for k in doc["collect"]} == {k: lib[k] for k in doc["collect"]}
+        run = tmp_path / "g" / "graph" / f"{r['index']:06d}"
+        assert list((run / "bag").glob("*.mcap")) and (run / "analysis" / "figures.json").exists()
+    assert yaml.safe_load((tmp_path / "g" / "campaign.yaml").read_text())["campaign"]["graph"] is True
