@@ -12,6 +12,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .geodesy import enu_to_geodetic
+
 __all__ = ["Sample", "ImuSample", "PressureSample", "DvlSample", "AltimeterSample", "GpsSample"]
 
 
@@ -91,7 +93,6 @@ class GpsSample(Sample):
     def with_bias(self, field: str, bias) -> "GpsSample":
         if not self.fix:
             return self
-        from .gps import enu_to_geodetic
         p = self.position_enu + np.asarray(bias, float)
         lat, lon, alt = enu_to_geodetic(p, *self.origin)
         return replace(self, position_enu=p, latitude_deg=float(lat), longitude_deg=float(lon), altitude_m=float(alt))
