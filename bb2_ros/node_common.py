@@ -21,6 +21,7 @@ Topic remapping is the standard ROS 2 one: ``--ros-args -r /bb2/odom:=/other/odo
 """
 from __future__ import annotations
 
+import math
 import os
 import signal
 import sys
@@ -39,21 +40,41 @@ class NodeConfigError(ValueError):
 
 
 # ----------------------------------------------------------------------------------------- parameters
-def declare(node, name: str, default: Any, description: str, *, read_only: bool = False) -> Any:
+LIVE_NOTE = " [live: takes effect when set at run time]"
+READ_ONLY_NOTE = " [read-only: fixed at start-up (params file or -p); ros2 param set is refused]"
+
+
+def declare(node, name: str, default: Any, description: str, *, on_set: Callable[[Any], None] | None = None,
+            check: Callable[[Any], Any] | None = None, read_only: bool | None = None) -> Any:
     """Declare ``name`` with ``default`` and a description; return its (possibly overridden) value.
 
     A value of the wrong type in a params file raises :class:`NodeConfigError` naming the parameter, and so do a
     NaN/inf for a number and a ``-p name:=value`` of the command line (or the launcher) that is not of the
     parameter's type — rclpy would silently keep the params file's value or the default (issue 10).
+
+    Parameters mean what they say (issue 13): a parameter with ``on_set`` is *live* — a set at run time
+    (``ros2 param set``, the parameter services) is checked and then ``on_set(value)`` applies it; every other
+    parameter is declared *read-only* (rclpy refuses the set, with the reason); the description says which.
+    The type is static: a float parameter accepts an integer (turned into a float, in a params file, on the
+    command line and at run time) and nothing else, any other parameter only its own type.  ``check(value)``
+    (raising :class:`NodeConfigError` or ``ValueError``) refuses invalid values at start-up and at run time, with
+    its message as the set's reason; numbers must be finite.
     """
     from rcl_interfaces.msg import ParameterDescriptor
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+    from rclpy.parameter import Parameter
 
     is_float = isinstance(default, float)
+    live = on_set is not None
+    read_only = not live if read_only is None else read_only
+    overrides = getattr(node, "_parameter_overrides", None)
+    if is_float and overrides is not None and name in overrides \
+            and overrides[name].type_ == Parameter.Type.INTEGER:  # `rate_hz: 100` in a params file
+        overrides[name] = Parameter(name, value=float(overrides[name].value))
+    rules = _parameter_rules(node)
     try:
-        # a float parameter also accepts an integer (`rate_hz: 100` in a params file)
         p = node.declare_parameter(name, default, ParameterDescriptor(
-            description=description, read_only=read_only, dynamic_typing=is_float))
+            description=description + (READ_ONLY_NOTE if read_only else LIVE_NOTE), read_only=read_only))
     except (InvalidParameterTypeException, InvalidParameterValueException, TypeError) as exc:
         raise NodeConfigError(f"parameter {name!r}: {exc}") from None
     value = p.value
@@ -66,7 +87,71 @@ def declare(node, name: str, default: Any, description: str, *, read_only: bool 
         value = float(value)
         if value != value or value in (float("inf"), float("-inf")):
             raise NodeConfigError(f"parameter {name!r} must be finite, got {value!r}")
+    if check is not None:
+        try:
+            checked = check(value)
+        except ValueError as exc:  # NodeConfigError is one
+            raise NodeConfigError(str(exc) if name in str(exc) else f"parameter {name!r}: {exc}") from None
+        value = value if checked is None else checked
+    rules[name] = _ParameterRule(is_float, check, on_set)
     return value
+
+
+class _ParameterRule:
+    __slots__ = ("is_float", "check", "on_set")
+
+    def __init__(self, is_float: bool, check, on_set):
+        self.is_float, self.check, self.on_set = is_float, check, on_set
+
+
+def _parameter_rules(node) -> dict[str, _ParameterRule]:
+    """The node's rules, with its three set callbacks installed on first use: before a set, an integer for a
+    float parameter becomes a float; on a set, values are checked (a refusal carries the reason); after it,
+    the live parameter's ``on_set`` applies the value."""
+    rules = getattr(node, "_bb2_parameter_rules", None)
+    if rules is not None:
+        return rules
+    from rcl_interfaces.msg import SetParametersResult
+    from rclpy.parameter import Parameter
+
+    rules = {}
+    node._bb2_parameter_rules = rules
+
+    def pre_set(params):
+        return [Parameter(p.name, value=float(p.value))
+                if p.name in rules and rules[p.name].is_float and p.type_ == Parameter.Type.INTEGER else p
+                for p in params]
+
+    def on_set(params):
+        for p in params:
+            rule = rules.get(p.name)
+            if rule is None:
+                continue
+            v = p.value
+            if rule.is_float and not math.isfinite(v):
+                return SetParametersResult(successful=False, reason=f"parameter {p.name!r} must be finite, got {v}")
+            if rule.check is not None:
+                try:
+                    rule.check(v)
+                except ValueError as exc:
+                    return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def post_set(params):
+        for p in params:
+            rule = rules.get(p.name)
+            if rule is not None and rule.on_set is not None:
+                v = p.value
+                if rule.check is not None:
+                    checked = rule.check(v)
+                    v = v if checked is None else checked
+                rule.on_set(v)
+                node.get_logger().info(f"parameter {p.name} set to {v!r} (live: in effect now)")
+
+    node.add_pre_set_parameters_callback(pre_set)
+    node.add_on_set_parameters_callback(on_set)
+    node.add_post_set_parameters_callback(post_set)
+    return rules
 
 
 _node_argv: list[str] | None = None  # the argv run_node gave rclpy (for command_line_params)

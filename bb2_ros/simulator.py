@@ -1,6 +1,10 @@
 """``simulator`` node: the BB2 ROM at a fixed step, in lockstep with the controllers or in real time.
 
-Parameters (``config/bb2_graph.yaml`` lists them all with their defaults):
+Parameters (``config/bb2_graph.yaml`` lists them all with their defaults).  Live (``ros2 param set`` takes
+effect at once, checked first): ``rate_hz`` (from the next deadline), the gate's timings ``lockstep_timeout_s``,
+``lockstep_retry_s``, ``startup_timeout_s``, ``startup_settle_s``, ``command_timeout_s`` (the gate's frozen
+``GateTimings`` replaced), ``max_command_age_s``, ``duration_s``, ``exit_at_end``, ``warn_throttle_s``; every
+other one is read-only (fixed at start-up; the set is refused):
 
 ``mission_file``       the mission YAML (as ``bb2-sim mission``): model, initial state, terrain, duration.
 ``time_mode``          ``lockstep`` | ``realtime``.
@@ -67,6 +71,7 @@ the status.  This node turns messages into the gate's inputs and its decisions i
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 import sys
@@ -106,22 +111,31 @@ class Simulator(Node):
         self._lock = threading.RLock()  # real time: the stepping thread vs the executor's callbacks
         self.scheduling = "normal"  # of the real-time stepping thread (status)
         self.cpu_latency = "not held"  # /dev/cpu_dma_latency (status)
-        P = lambda *a: declare(node, *a)  # noqa: E731
+        P = lambda *a: declare(node, *a)  # noqa: E731  (read-only: fixed at start-up)
+
+        def L(name, default, desc, apply, check):  # live: `ros2 param set` takes effect at once (issue 13)
+            return declare(node, name, default, desc, on_set=self._locked(apply), check=check)
+
+        def positive(name, zero=False):
+            return lambda v: require_positive(name, v, allow_zero=zero)
         self.mission_file = P("mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         self.time_mode = TimeMode(require_choice("time_mode", P(
             "time_mode", "lockstep", "lockstep (wait for the controllers each step) | realtime (wall clock)"),
             [m.value for m in TimeMode]))
-        self.rate_hz = require_positive("rate_hz", P("rate_hz", 20.0,
-                                        "realtime: steps per wall second (20 = 1/Ts = real time)"))
-        self.lockstep_timeout_s = require_positive("lockstep_timeout_s", P(
-            "lockstep_timeout_s", 1.0, "lockstep: wall s to wait for a step's answer before holding commands"))
-        self.lockstep_retry_s = require_positive("lockstep_retry_s", P(
-            "lockstep_retry_s", 0.1, "lockstep: wall s before re-sending an unanswered /bb2/state_native"))
-        self.startup_timeout_s = require_positive("startup_timeout_s", P(
-            "startup_timeout_s", 30.0, "lockstep: timeout of the first step (graph still starting)"))
-        self.startup_settle_s = require_positive("startup_settle_s", P(
-            "startup_settle_s", 0.5, "lockstep: hold the first step this long after its first answer"),
-            allow_zero=True)
+        self.rate_hz = L("rate_hz", 20.0, "realtime: steps per wall second (20 = 1/Ts = real time); from the "
+                         "next step when set", lambda v: setattr(self, "rate_hz", v), positive("rate_hz"))
+        self.lockstep_timeout_s = L(
+            "lockstep_timeout_s", 1.0, "lockstep: wall s to wait for a step's answer before holding commands",
+            lambda v: self._set_timing("lockstep_timeout_s", v), positive("lockstep_timeout_s"))
+        self.lockstep_retry_s = L(
+            "lockstep_retry_s", 0.1, "lockstep: wall s before re-sending an unanswered /bb2/state_native",
+            lambda v: self._set_timing("lockstep_retry_s", v), positive("lockstep_retry_s"))
+        self.startup_timeout_s = L(
+            "startup_timeout_s", 30.0, "lockstep: timeout of the first step (graph still starting)",
+            lambda v: self._set_timing("startup_timeout_s", v), positive("startup_timeout_s"))
+        self.startup_settle_s = L(
+            "startup_settle_s", 0.5, "lockstep: hold the first step this long after its first answer",
+            lambda v: self._set_timing("startup_settle_s", v), positive("startup_settle_s", zero=True))
         self.realtime_priority = int(P("realtime_priority", 50,
                                        "realtime: SCHED_FIFO priority (1-99) of the stepping thread; 0 = normal "
                                        "scheduling (refused by the OS: a warning, normal scheduling)"))
@@ -130,12 +144,16 @@ class Simulator(Node):
             "wake fast, as cyclictest does); refused by the OS: a warning"))
         if not 0 <= self.realtime_priority <= 99:
             raise NodeConfigError(f"realtime_priority must be in 0..99, got {self.realtime_priority}")
-        self.command_timeout_s = require_positive("command_timeout_s", P(
-            "command_timeout_s", 0.5, "realtime: wall s without a valid command before the failsafe"))
-        self.max_command_age_s = require_positive("max_command_age_s", P(
-            "max_command_age_s", 1.0, "reject commands stamped more than this (sim s) before the sim time"))
-        duration = float(P("duration_s", -1.0, "stop at this sim time (< 0: mission duration; none: run on)"))
-        self.exit_at_end = bool(P("exit_at_end", False, "exit 0 when the duration is reached"))
+        self.command_timeout_s = L(
+            "command_timeout_s", 0.5, "realtime: wall s without a valid command before the failsafe",
+            lambda v: self._set_timing("command_timeout_s", v), positive("command_timeout_s"))
+        self.max_command_age_s = L(
+            "max_command_age_s", 1.0, "reject commands stamped more than this (sim s) before the sim time",
+            self._set_max_command_age, positive("max_command_age_s"))
+        duration = L("duration_s", -1.0, "stop at this sim time (< 0: mission duration; none: run on); when set, "
+                     "for the steps to come (a finished run stays finished)", self._set_duration, None)
+        self.exit_at_end = L("exit_at_end", False, "exit 0 when the duration is reached (set true on a finished "
+                             "run: it exits now)", self._set_exit_at_end, None)
         csv_path = P("trajectory_csv", "", "write t and the native state of every step to this CSV ('' = off)")
         sea_file = P("sea_file", "", "'' = the mission's sea and current; else a YAML/JSON file with sea: and/or "
                                      "current: blocks, or a bb2_sea/1 description (a bag's /bb2/sea), replacing them")
@@ -147,8 +165,8 @@ class Simulator(Node):
                                        "reader (a recorder), at most startup_timeout_s"))
         self.status_period_s = require_positive("status_period_s", P(
             "status_period_s", 1.0, "wall period of /bb2/status"))
-        throttle_s = require_positive("warn_throttle_s", P(
-            "warn_throttle_s", 2.0, "at most one warning of a kind per this many wall seconds"))
+        throttle_s = L("warn_throttle_s", 2.0, "at most one warning of a kind per this many wall seconds",
+                       lambda v: setattr(self.warn, "period_s", v), positive("warn_throttle_s"))
         strict = bool(P("strict_remaps", False, "a remap rule naming no topic of this node is an error"))
         check_remaps(node, argv, TOPICS_OUT + TOPICS_IN, strict=strict)
 
@@ -215,6 +233,24 @@ class Simulator(Node):
             f"simulator up: mission {self.mission_file}, {self.time_mode.value}"
             + (f" at {self.rate_hz:g} Hz" if self.time_mode is TimeMode.REALTIME else "")
             + f", Ts = {self.h:g} s, duration {self.duration_s:g} s")
+
+    # ------------------------------------------------------------------------------------ live parameters
+    def _set_timing(self, name: str, value: float) -> None:
+        """A gate timing set at run time: the gate's own (frozen) settings are replaced."""
+        setattr(self, name, value)
+        self.gate.timings = dataclasses.replace(self.gate.timings, **{name: value})
+
+    def _set_max_command_age(self, value: float) -> None:
+        self.max_command_age_s = value
+        self.gate.validator.max_age_ns = int(value * 1e9)
+
+    def _set_duration(self, value: float) -> None:
+        self.duration_s = value if value >= 0 else float(self.mission.duration)
+
+    def _set_exit_at_end(self, value: bool) -> None:
+        self.exit_at_end = value
+        if value and (self.finished or self.diverged):
+            self.done = True
 
     def _locked(self, fn):
         def call(*args):
@@ -323,9 +359,9 @@ class Simulator(Node):
                                                "stepping with normal scheduling")
         if self.hold_cpu_dma_latency:
             self._hold_cpu_dma_latency()
-        period = 1.0 / self.rate_hz
         late = 0  # consecutive ticks with no time left before the next deadline
         while not self._rt_stop.is_set():
+            period = 1.0 / self.rate_hz  # live parameter: a new rate from the next deadline on
             if not self.started:  # _start sets the first deadline
                 self._rt_stop.wait(0.01)
                 continue
