@@ -86,6 +86,9 @@ class QosDescription:
     durability: str  # "volatile" | "transient_local"
     history: str  # "keep_last" | "keep_all"
     depth: int
+    #: the readers' reliability when it differs from the writer's ("" = the same): a reliable writer with
+    #: best-effort readers serves both kinds of subscriber (a reliable reader needs a reliable writer)
+    reader_reliability: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         return {"reliability": self.reliability, "durability": self.durability,
@@ -93,8 +96,12 @@ class QosDescription:
 
 
 QOS: dict[str, QosDescription] = {
-    # rclpy qos_profile_sensor_data: best effort, volatile, keep last 5
-    "sensor": QosDescription("best_effort", "volatile", "keep_last", 5),
+    # vehicle state and sensors: written reliable (keep last 5) so that a subscriber with the default reliable
+    # QoS (RViz, `ros2 topic echo --qos-reliability reliable`) and a best-effort one (qos_profile_sensor_data)
+    # both receive them; our own readers (controllers on odometry, the recorder) read best effort, as sensor
+    # data is read, and so also match a best-effort publisher (an external simulator, a HIL bench); measured
+    # cost in lockstep: README "QoS choices"
+    "sensor": QosDescription("reliable", "volatile", "keep_last", 5, reader_reliability="best_effort"),
     # commands, guidance outputs and the lockstep state: every sample matters; the writer keeps 100
     # samples so a reader that is not part of the lockstep handshake (recorder, test, tool) may lag 100
     # steps without losing one (reliable keep-last drops unacknowledged samples beyond the depth)
@@ -189,6 +196,9 @@ CONTRACT: tuple[TopicSpec, ...] = (
     TopicSpec("/bb2/status", "diagnostic_msgs/msg/DiagnosticArray", "status", "-",
               "key/values (mode, failsafe, rates, overruns)", SIM, (RECORDER,),
               "what the simulator (and each node) is doing"),
+    TopicSpec("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", "status", "-",
+              "key/values, as /bb2/status", SIM, (RECORDER, EXTERNAL),
+              "the same statuses on the standard ROS diagnostics topic (rqt_robot_monitor, diagnostic_aggregator)"),
     TopicSpec("/tf", "tf2_msgs/msg/TFMessage", "command", "odom -> base_link", "m, quaternion",
               RECORDER, (EXTERNAL,), "derived from /bb2/odom by the recorder (bags only)",
               bag_only=True),
@@ -227,18 +237,20 @@ def select_topics(patterns: list[str] | None = None, *, include_bag_only: bool =
     return out
 
 
-def qos_profile(name: str):
-    """The rclpy ``QoSProfile`` of a topic (by topic name) or of a QoS key of :data:`QOS`."""
+def qos_profile(name: str, *, reader: bool = False):
+    """The rclpy ``QoSProfile`` of a topic (by topic name) or of a QoS key of :data:`QOS`: the writer's, or with
+    ``reader`` the subscription's (they differ in reliability for the state topics, see :data:`QOS`)."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     if name in QOS:
         desc = QOS[name]
     else:
         desc = topic(name).qos_description
+    reliability = (desc.reader_reliability or desc.reliability) if reader else desc.reliability
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST if desc.history == "keep_last" else HistoryPolicy.KEEP_ALL,
         depth=desc.depth,
-        reliability=(ReliabilityPolicy.RELIABLE if desc.reliability == "reliable"
+        reliability=(ReliabilityPolicy.RELIABLE if reliability == "reliable"
                      else ReliabilityPolicy.BEST_EFFORT),
         durability=(DurabilityPolicy.TRANSIENT_LOCAL if desc.durability == "transient_local"
                     else DurabilityPolicy.VOLATILE),
@@ -267,7 +279,8 @@ def contract_markdown(*, include_bag_only: bool = True) -> str:
         if t.bag_only and not include_bag_only:
             continue
         q = t.qos_description
-        qos = f"{q.reliability}, {q.durability}, {q.history} {q.depth}"
+        qos = f"{q.reliability}, {q.durability}, {q.history} {q.depth}" + (
+            f" (readers: {q.reader_reliability})" if q.reader_reliability else "")
         rows.append(f"| `{t.name}` | `{t.type}` | {qos} | {t.frame} | {t.units} | {t.publisher} | "
                     f"{', '.join(t.subscribers)} |")
     return head + "\n".join(rows) + "\n"

@@ -401,6 +401,8 @@ class NodeStatus:
         self.node, self.name, self.values = node, name, values
         self.level, self.message = 0, "running"
         self.pub = node.create_publisher(DiagnosticArray, "/bb2/status", qos_profile("/bb2/status"))
+        # and on the standard /diagnostics (rqt_robot_monitor, diagnostic_aggregator)
+        self.pub_diagnostics = node.create_publisher(DiagnosticArray, "/diagnostics", qos_profile("/diagnostics"))
         self.timer = node.create_timer(period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def publish(self) -> None:
@@ -413,7 +415,9 @@ class NodeStatus:
         st = DiagnosticStatus(level=bytes([self.level]), name=self.name, message=self.message,
                               hardware_id=self.node.get_fully_qualified_name(),
                               values=[KeyValue(key=k, value=str(v)) for k, v in vals.items()])
-        self.pub.publish(DiagnosticArray(header=Header(stamp=self.node.get_clock().now().to_msg()), status=[st]))
+        msg = DiagnosticArray(header=Header(stamp=self.node.get_clock().now().to_msg()), status=[st])
+        self.pub.publish(msg)
+        self.pub_diagnostics.publish(msg)
 
 
 class StampedCache:
@@ -511,7 +515,7 @@ def subscribe_state(node, source: str, callback: Callable[[Any, int], None]):
             return
         callback(s, cv.stamp_to_ns(msg.header.stamp))
     return node.create_subscription(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", on_odom,
-                                    qos_profile("/bb2/odom"))
+                                    qos_profile("/bb2/odom", reader=True))
 
 
 def take_all(subscription) -> list[tuple[bytes, dict]]:

@@ -96,7 +96,7 @@ from bb2_ros.node_common import (NodeConfigError, Throttle, build_piece, check_r
                                  require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
-              "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status")
+              "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics")
 LATCHED_OUT = ("/bb2/sea",)   # a late reader still gets it: no reason to wait for one before the first step
 TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd")
 TWO_PI = 2.0 * math.pi
@@ -520,7 +520,9 @@ class Simulator(Node):
         st = DiagnosticStatus(level=level, name="bb2/simulator", message=msg_text, hardware_id="bb2_rom",
                               values=[KeyValue(key=k, value=v) for k, v in vals.items()])
         from std_msgs.msg import Header
-        self.pub["/bb2/status"].publish(DiagnosticArray(header=Header(stamp=stamp(self.t)), status=[st]))
+        msg = DiagnosticArray(header=Header(stamp=stamp(self.t)), status=[st])
+        self.pub["/bb2/status"].publish(msg)
+        self.pub["/diagnostics"].publish(msg)  # the standard diagnostics topic too
 
     def close(self) -> None:
         if getattr(self, "_rt_thread", None) is not None:

@@ -48,9 +48,11 @@ def test_every_contract_type_is_a_real_message_or_embedded():
 def test_qos_choices():
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy, qos_profile_sensor_data
 
-    for name in ("/bb2/odom", "/bb2/imu"):
-        q = qos_profile(name)
-        assert q.reliability == qos_profile_sensor_data.reliability == ReliabilityPolicy.BEST_EFFORT
+    for name in ("/bb2/odom", "/bb2/imu"):  # written reliable (reliable and best-effort readers both receive),
+        q = qos_profile(name)                # read best effort (as sensor data; matches any writer)
+        assert q.reliability == ReliabilityPolicy.RELIABLE
+        assert qos_profile(name, reader=True).reliability == qos_profile_sensor_data.reliability \
+            == ReliabilityPolicy.BEST_EFFORT
         assert q.history == HistoryPolicy.KEEP_LAST and q.depth == qos_profile_sensor_data.depth == 5
     for name in ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd"):
         assert qos_profile(name).reliability == ReliabilityPolicy.RELIABLE

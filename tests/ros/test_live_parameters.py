@@ -122,7 +122,9 @@ def _sim_rate(ctx_node, seconds: float) -> float:
     return (got[-1][1] - got[0][1]) / (got[-1][0] - got[0][0])
 
 
-def test_ros2_param_set_get_describe_dump_on_a_running_simulator(tmp_path):
+def test_ros2_cli_on_a_running_simulator_params_qos_diagnostics(tmp_path):
+    """ros2 param set/get/describe/dump; ros2 topic echo of /bb2/odom with a reliable and a best-effort
+    subscription (issue 13 (6)) and of /diagnostics."""
     domain = 228
     env = tooling_env(tooling_venv(), ROS_DOMAIN_ID=str(domain))
     proc = subprocess.Popen([sys.executable, "-m", "bb2_ros.simulator", "--ros-args",
@@ -151,6 +153,12 @@ def test_ros2_param_set_get_describe_dump_on_a_running_simulator(tmp_path):
         assert "[live" in r.stdout and "[read-only" in r.stdout and "Read only: true" in r.stdout, r.stdout
         r = _ros2(env, "param", "dump", "/simulator")
         assert r.returncode == 0 and "rate_hz: 10.0" in r.stdout and "time_mode: realtime" in r.stdout, r.stdout
+        for reliability in ("reliable", "best_effort"):  # RViz's default and qos_profile_sensor_data
+            r = _ros2(env, "topic", "echo", "--once", "--qos-reliability", reliability, "/bb2/odom",
+                      "nav_msgs/msg/Odometry", timeout=60)
+            assert r.returncode == 0 and "child_frame_id: base_link" in r.stdout, (reliability, r.stdout + r.stderr)
+        r = _ros2(env, "topic", "echo", "--once", "/diagnostics", "diagnostic_msgs/msg/DiagnosticArray")
+        assert r.returncode == 0 and "name: bb2/simulator" in r.stdout, r.stdout + r.stderr
     finally:
         probe.destroy_node()
         rclpy.shutdown(context=ctx)

@@ -124,7 +124,8 @@ def test_recorder_records_real_dds_topics(tmp_path, domain_id):
     assert 1 <= counts["/clock"] <= 10
     qos = {t["topic_metadata"]["name"]: t["topic_metadata"]["offered_qos_profiles"]
            for t in info["topics_with_message_count"]}
-    assert qos["/bb2/odom"][0]["reliability"] == "best_effort"  # what the publisher offered
+    assert qos["/bb2/odom"][0]["reliability"] == "reliable"  # what the publisher offered (issue 13: state topics
+    assert qos["/clock"][0]["reliability"] == "best_effort"  # are written reliable; /clock stays ClockQoS)
     assert qos["/bb2/path"][0]["durability"] == "transient_local"
 
     # the .mcap independently

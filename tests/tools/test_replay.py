@@ -107,7 +107,7 @@ def test_playback_clock_rate_and_pause():
 def test_replay_qos_and_topic_selection(recorded):
     bag, _, _ = recorded
     infos = {t.name: t for t in BagReader(bag).topic_infos()}
-    assert replay_qos(infos["/bb2/odom"]).reliability == "best_effort"
+    assert replay_qos(infos["/bb2/odom"]).reliability == "reliable"  # as offered (state topics: issue 13)
     assert replay_qos(infos["/bb2/planes/cmd"]).reliability == "reliable"
     assert select_bag_topics(infos, None) == sorted(TOPICS)
     assert select_bag_topics(infos, ["/bb2/p.*/cmd"]) == ["/bb2/planes/cmd", "/bb2/propeller/cmd"]
