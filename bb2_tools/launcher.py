@@ -52,7 +52,7 @@ from bb2_tools.graph_monitor import END_AT, GraphMonitor, format_status, free_do
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
                                   Supervisor, parse_restart_policies)
 
-RECORDER_NODE_NAME = "bb2_recorder"
+RECORDER_NODE_NAME = "recorder"  # bb2_tools.recorder.NODE_NAME
 
 
 # ============================================================================ the node table

@@ -109,7 +109,7 @@ def subscription_qos(spec: TopicSpec, depth: int):
 
     from bb2_msgs_py.contract import qos_profile
 
-    q = qos_profile(spec.name)
+    q = qos_profile(spec.name, reader=True)
     q.history = HistoryPolicy.KEEP_LAST
     q.depth = max(int(depth), q.depth)
     return q
@@ -120,14 +120,15 @@ class Recorder:
 
     def __init__(self, bag: BagWriter, topics: Sequence[TopicSpec], *, tf_from_odom: bool = True,
                  flush_period_s: float = 1.0, queue_depth: int = 1000, node_name: str = "bb2_recorder",
-                 use_sim_time: bool = False):
+                 use_sim_time: bool = False, node=None):
         from rclpy.clock import Clock, ClockType
         from rclpy.node import Node
         from rclpy.serialization import deserialize_message
 
         self.bag = bag
-        # parameter services are not spun (the recorder waits on its subscriptions only, see spin_once)
-        self.node = Node(node_name, start_parameter_services=False)
+        # ``node``: a node of the caller's (the `recorder` executable's, with its parameters and parameter
+        # services, which spin_once serves from its own wait set); else one without parameter services
+        self.node = node if node is not None else Node(node_name, start_parameter_services=False)
         self.tf_from_odom = tf_from_odom and any(t.name == ODOM_TOPIC for t in topics)
         self.use_sim_time = bool(use_sim_time)
         self._sim_ns = 0  # the last /clock taken (ROS time 0 until the first, as rclpy's time source)
@@ -169,12 +170,17 @@ class Recorder:
 
         ctx = self.node.context
         if self._wait_set is None:
-            self._wait_set = _rclpy.WaitSet(len(self._subs), 0, 0, 0, 0, 0, ctx.handle)
+            self._services = list(self.node.services)  # the parameter services, if the node has them
+            self._wait_set = _rclpy.WaitSet(len(self._subs), 0, 0, 0, len(self._services), 0, ctx.handle)
         ws = self._wait_set
         ws.clear_entities()
         for sub, _spec in self._subs:
             ws.add_subscription(sub.handle)
+        for srv in self._services:
+            ws.add_service(srv.handle)
         ws.wait(max(int(timeout_s * 1e9), 0))
+        if self._services:
+            self._serve(set(ws.get_ready_entities("service")))
         ready = set(ws.get_ready_entities("subscription"))
         taken = []
         for sub, spec in self._subs:
@@ -193,6 +199,15 @@ class Recorder:
             self._next_flush = time.monotonic() + self.flush_period_s
             self._flush()
         return len(taken)
+
+    def _serve(self, ready: set) -> None:
+        """Answer the ready service requests (ros2 param list/get/describe/dump/set), as an executor would."""
+        for srv in self._services:
+            if srv.handle.pointer not in ready:
+                continue
+            request, header = srv.handle.service_take_request(srv.srv_type.Request)
+            if header is not None:
+                srv.send_response(srv.callback(request, srv.srv_type.Response()), header)
 
     def _now_ns(self) -> int:
         return self._sim_ns if self.use_sim_time else self._system_clock.now().nanoseconds
@@ -225,22 +240,27 @@ def _parse(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
     p = argparse.ArgumentParser(prog="bb2-record", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", type=Path, default=None,
-                   help="bag directory to create (default bags/bb2_YYYYmmdd_HHMMSS)")
+                   help="bag directory to create (parameter bag_directory; default bags/bb2_YYYYmmdd_HHMMSS)")
     p.add_argument("--topics", nargs="+", default=None, metavar="TOPIC_OR_REGEX",
-                   help="contract topics to record (exact names or regular expressions); default all")
-    p.add_argument("--chunk-size", type=int, default=256 * 1024,
-                   help="uncompressed bytes per MCAP chunk (the most a SIGKILL loses); default 262144")
-    p.add_argument("--flush-period", type=float, default=1.0,
-                   help="also close the open chunk every S seconds of wall time (0: never); default 1")
-    p.add_argument("--depth", type=int, default=1000, help="subscription queue depth; default 1000")
-    p.add_argument("--batch-period", type=float, default=0.005, metavar="S",
+                   help="contract topics to record (exact names or regular expressions; parameter topics); "
+                        "default all")
+    p.add_argument("--chunk-size", type=int, default=None,
+                   help="uncompressed bytes per MCAP chunk (the most a SIGKILL loses; parameter chunk_size); "
+                        "default 262144")
+    p.add_argument("--flush-period", type=float, default=None,
+                   help="also close the open chunk every S seconds of wall time (0: never; parameter "
+                        "flush_period_s); default 1")
+    p.add_argument("--depth", type=int, default=None, help="subscription queue depth (parameter queue_depth); "
+                                                          "default 1000")
+    p.add_argument("--batch-period", type=float, default=None, metavar="S",
                    help="after taking messages, wait this long before the next take, so that messages are "
                         "taken in batches (one wake-up instead of one per message: less CPU taken from the "
                         "graph; must stay well below --depth messages per topic); 0 = take each as it "
-                        "arrives; default 0.005")
-    p.add_argument("--use-sim-time", action="store_true", help="log times from /clock (use_sim_time)")
-    p.add_argument("--no-tf", action="store_true", help="do not derive /tf from /bb2/odom")
-    p.add_argument("--overwrite", action="store_true", help="allow a non-empty --out directory")
+                        "arrives (parameter batch_period_s); default 0.005")
+    p.add_argument("--use-sim-time", action="store_true", help="log times from /clock (parameter use_sim_time)")
+    p.add_argument("--no-tf", action="store_true", help="do not derive /tf from /bb2/odom (parameter tf_from_odom)")
+    p.add_argument("--overwrite", action="store_true", help="allow a non-empty --out directory (parameter "
+                                                            "overwrite)")
     from rclpy.utilities import remove_ros_args
 
     ros_argv = list(argv)
@@ -248,9 +268,41 @@ def _parse(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
     return args, ros_argv
 
 
+NODE_NAME = "recorder"
+PARAMETERS: dict[str, tuple[Any, str]] = {  # read-only: a bag is configured when it starts
+    "bag_directory": ("", "bag directory to create ('' = bags/bb2_YYYYmmdd_HHMMSS, relative to the working "
+                          "directory)"),
+    "topics": ([""], "contract topics to record, exact names or regular expressions ([] or [''] = every topic)"),
+    "batch_period_s": (0.005, "after taking messages, wait this long (wall s) before the next take: one wake-up "
+                              "per batch, not per message; 0 = take each as it arrives; in [0, 1]"),
+    "queue_depth": (1000, "subscription queue depth per topic (> 0)"),
+    "chunk_size": (256 * 1024, "storage: uncompressed bytes per MCAP chunk, the most a SIGKILL loses (> 0)"),
+    "flush_period_s": (1.0, "storage: also close the open chunk every this many wall s (0 = never)"),
+    "compression": ("zstd", "storage: chunk compression, zstd | lz4 | '' (none)"),
+    "storage_id": ("mcap", "storage: rosbag2 storage plugin id; mcap (the only one written here)"),
+    "tf_from_odom": (True, "write /tf (odom -> base_link) from every /bb2/odom"),
+    "overwrite": (False, "allow a non-empty bag_directory"),
+}
+
+
+def _parameters(node) -> dict[str, Any]:
+    """Declare the recorder's parameters (read-only, described) and return their values."""
+    from rcl_interfaces.msg import ParameterDescriptor
+
+    out = {}
+    for name, (default, desc) in PARAMETERS.items():
+        d = ParameterDescriptor(description=desc + " [read-only: fixed at start-up]", read_only=True)
+        out[name] = node.declare_parameter(name, default, d).value
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point: record until SIGINT/SIGTERM, then finish the bag. Returns the exit code."""
+    """Entry point (``ros2 run bb2_tools recorder``): record until SIGINT/SIGTERM, then finish the bag. Returns
+    the exit code.  Configured by its ROS parameters (:data:`PARAMETERS`, ``--ros-args -p`` or a params file);
+    a command-line option, when given, wins over its parameter."""
     import rclpy
+    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+    from rclpy.node import Node
     from rclpy.signals import SignalHandlerOptions
 
     from bb2_msgs_py.ros_env import ros_environment_or_error
@@ -260,16 +312,37 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     args, ros_argv = _parse(argv)
     try:
-        specs = select_topics(args.topics)
-        if args.chunk_size <= 0 or args.depth <= 0 or args.flush_period < 0 or not 0 <= args.batch_period <= 1:
-            raise ContractError("--chunk-size and --depth must be > 0, --flush-period >= 0, "
-                                "--batch-period in [0, 1] s")
-        out = args.out or Path("bags") / time.strftime("bb2_%Y%m%d_%H%M%S")
-        bag = BagWriter(out, chunk_size=args.chunk_size, overwrite=args.overwrite,
-                        custom_data={"recorder": "bb2_tools.recorder",
-                                     "topics": " ".join(s.name for s in specs)})
-    except (ContractError, BagError) as exc:
+        rclpy.init(args=[NODE_NAME, *ros_argv], signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:  # rcl's own message names the bad params file / argument
+        print(f"bb2-record: error: cannot start ROS (bad --ros-args or params file?): {exc}", file=sys.stderr)
+        return 2
+    node = None
+    try:
+        node = Node(NODE_NAME)  # with parameter services: spin_once serves them
+        par = _parameters(node)
+        use_sim_time = args.use_sim_time or bool(node.get_parameter("use_sim_time").value)
+        topics = args.topics if args.topics is not None else [t for t in par["topics"] if t] or None
+        chunk = args.chunk_size if args.chunk_size is not None else par["chunk_size"]
+        flush = args.flush_period if args.flush_period is not None else par["flush_period_s"]
+        depth = args.depth if args.depth is not None else par["queue_depth"]
+        batch = args.batch_period if args.batch_period is not None else par["batch_period_s"]
+        specs = select_topics(topics)
+        if chunk <= 0 or depth <= 0 or flush < 0 or not 0 <= batch <= 1:
+            raise ContractError("chunk size and queue depth must be > 0, flush period >= 0, batch period in [0, 1] s")
+        if par["storage_id"] != "mcap":
+            raise ContractError(f"parameter 'storage_id' must be mcap, got {par['storage_id']!r}")
+        if par["compression"] not in ("zstd", "lz4", ""):
+            raise ContractError(f"parameter 'compression' must be zstd, lz4 or '', got {par['compression']!r}")
+        out = args.out or (Path(par["bag_directory"]) if par["bag_directory"]
+                           else Path("bags") / time.strftime("bb2_%Y%m%d_%H%M%S"))
+        bag = BagWriter(out, chunk_size=int(chunk), compression=par["compression"],
+                        overwrite=args.overwrite or par["overwrite"],
+                        custom_data={"recorder": "bb2_tools.recorder", "topics": " ".join(s.name for s in specs)})
+    except (ContractError, BagError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
         print(f"bb2-record: error: {exc}", file=sys.stderr)
+        if node is not None:
+            node.destroy_node()
+        rclpy.shutdown()
         return 2
 
     stop = threading.Event()
@@ -277,16 +350,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     def on_signal(signum, _frame):
         stop.set()
 
-    rclpy.init(args=["bb2_recorder", *ros_argv], signal_handler_options=SignalHandlerOptions.NO)
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    rec = Recorder(bag, specs, tf_from_odom=not args.no_tf, flush_period_s=args.flush_period,
-                   queue_depth=args.depth, use_sim_time=args.use_sim_time)
+    rec = Recorder(bag, specs, tf_from_odom=not args.no_tf and par["tf_from_odom"], flush_period_s=float(flush),
+                   queue_depth=int(depth), use_sim_time=use_sim_time, node=node)
     print(f"bb2-record: recording {len(specs)} topics into {out}", flush=True)
     code = 0
     try:
         while not stop.is_set() and rclpy.ok():
-            if rec.spin_once(0.05) and args.batch_period > 0:
-                stop.wait(args.batch_period)
+            if rec.spin_once(0.05) and batch > 0:
+                stop.wait(float(batch))
     except Exception as exc:  # report, then still finish the bag
         print(f"bb2-record: error while recording: {exc!r}", file=sys.stderr)
         code = 1

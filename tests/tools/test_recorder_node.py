@@ -1,0 +1,71 @@
+"""Issue 13 (3): the recorder is a proper node: named ``recorder``, configured by ROS parameters (bag directory,
+topics, batch period, storage options), with parameter services that answer ``ros2 param`` at once (they are
+served from the recorder's own wait set); its command-line options remain as a convenience."""
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+pytestmark = pytest.mark.ros
+pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from ros2_tooling import tooling_env, tooling_venv  # noqa: E402  (tests/ros2_tooling.py)
+from rosenv import ros_env  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def test_recorder_parameters_and_parameter_services(tmp_path):
+    domain = 227
+    env = tooling_env(tooling_venv(), ROS_DOMAIN_ID=str(domain))
+    bag = tmp_path / "bag"
+    params = tmp_path / "rec.yaml"
+    params.write_text(yaml.safe_dump({"recorder": {"ros__parameters": {
+        "bag_directory": str(bag), "topics": ["/clock", "/bb2/mission/progress"], "batch_period_s": 0.01,
+        "chunk_size": 4096, "compression": "lz4", "use_sim_time": True}}}))
+    proc = subprocess.Popen([sys.executable, "-m", "bb2_tools.recorder", "--ros-args", "--params-file", str(params)],
+                            cwd=tmp_path, env=ros_env(domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        t0 = time.monotonic()
+        while not bag.is_dir():
+            assert proc.poll() is None and time.monotonic() - t0 < 60, proc.stderr.read() if proc.poll() else ""
+            time.sleep(0.1)
+        t0 = time.monotonic()
+        r = subprocess.run(["ros2", "param", "list", "/recorder"], env=env, capture_output=True, text=True,
+                           timeout=60)
+        assert r.returncode == 0 and "bag_directory" in r.stdout and "batch_period_s" in r.stdout, r.stdout + r.stderr
+        assert time.monotonic() - t0 < 7.5, "ros2 param list waited for a time-out"  # it took 8 s without services
+        r = subprocess.run(["ros2", "param", "get", "/recorder", "compression"], env=env, capture_output=True,
+                           text=True, timeout=60)
+        assert "String value is: lz4" in r.stdout, r.stdout + r.stderr
+        r = subprocess.run(["ros2", "param", "set", "/recorder", "chunk_size", "5"], env=env, capture_output=True,
+                           text=True, timeout=60)
+        assert "Setting parameter failed" in r.stdout + r.stderr and "read-only" in r.stdout + r.stderr
+        r = subprocess.run(["ros2", "param", "describe", "/recorder", "topics"], env=env, capture_output=True,
+                           text=True, timeout=60)
+        assert "Type: string array" in r.stdout and "Read only: true" in r.stdout, r.stdout
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["custom_data"]["topics"] == "/clock /bb2/mission/progress"
+
+
+def test_recorder_refuses_bad_storage_parameters_with_one_line(tmp_path):
+    for args, why in ((["-p", "storage_id:=sqlite3"], "storage_id"), (["-p", "compression:=gzip"], "compression"),
+                      (["-p", "batch_period_s:=5.0"], "batch period"), (["-p", "topics:=[/bb2/nothing]"],
+                                                                        "matches no contract topic")):
+        r = subprocess.run([sys.executable, "-m", "bb2_tools.recorder", "--ros-args",
+                            "-p", f"bag_directory:={tmp_path / 'b'}", *args], cwd=tmp_path, env=ros_env(226),
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2 and why in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
+        assert not (tmp_path / "b").exists()
