@@ -25,7 +25,8 @@ from bb2_planner.terrain import Terrain
 from bb2_mission.schema import RPS_PATH_MEAN_SPEED, Mission, MissionError, _resolve_stack, initial_state
 
 __all__ = ["MissionComponents", "HullProbes", "mission_components", "check_initial_state", "stack_overrides",
-           "initial_state", "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer"]
+           "initial_state", "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer",
+           "build_sensor_suite", "sensor_spec"]
 
 
 def stack_overrides(m: Mission) -> dict[str, Any]:
@@ -179,6 +180,37 @@ def build_mixer(m: Mission) -> Any:
     from bb2_control.stacks import build_mixer as stack_mixer
 
     return stack_mixer(m.stack, stack_overrides(m))
+
+
+def sensor_spec(m: Mission, suite: str = "") -> Any:
+    """The sensors a run uses: the mission's ``sensors:`` block (``suite`` ""), none (``suite`` "none"), or the
+    suite ``suite`` (tactical | mems | FILE) with the mission's seed and faults (a node's parameter)."""
+    from bb2_sim.sensors.config import SensorSpec, load_suite_config
+
+    if not suite:
+        return m.sensors
+    if suite.lower() == "none":
+        return None
+    base = m.source_file.parent if m.source_file is not None else None
+    cfg = load_suite_config(suite, base_dir=base)
+    spec = SensorSpec(cfg, m.sensors.seed if m.sensors else 0, m.sensors.faults if m.sensors else (), suite)
+    present = cfg.sensors()
+    for f in spec.faults:
+        if f.sensor not in present:
+            raise MissionError(f"sensors.faults names the {f.sensor}, which the suite {cfg.name!r} does not have")
+    return spec
+
+
+def build_sensor_suite(m: Mission, model: Any, sensors: Any = None) -> Any:
+    """The mission's sensor suite (:class:`bb2_sim.sensors.SensorSuite`) in the sea and current of ``model``, or
+    None without a ``sensors:`` block.  ``sensors`` (a :class:`bb2_sim.sensors.config.SensorSpec`) replaces the
+    mission's (the simulator node's ``sensor_suite`` parameter)."""
+    from bb2_sim.sensors import SensorSuite
+
+    spec = m.sensors if sensors is None else sensors
+    if spec is None:
+        return None
+    return SensorSuite.for_model(spec.suite, model, seed=spec.seed, faults=spec.faults)
 
 
 def nominal_rps(m: Mission) -> float:

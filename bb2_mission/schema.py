@@ -37,6 +37,11 @@ Mission file (YAML; every key optional except ``path``; unknown keys are an erro
       speed_mps: 0.5                   #   m/s
       heading_deg: 90.0                #   direction the water moves towards, native earth frame (0 = +x)
       profile: null                    #   {depths_m: [...], factors: [...]} or {water_depth_m: d, alpha: 1/7}
+    sensors: tactical                  # sensor suite (bb2_sim.sensors): tactical | mems | FILE | none (default:
+                                       # none, no /bb2/sensors/* topics); or {suite: ..., seed: 0, faults: [...]}
+                                       # with faults [{sensor: dvl, kind: dropout|stuck|bias_step, start_s: 100,
+                                       # end_s: 130, bias: ..., field: ...}] (bb2_sim.sensors.config.FaultSpec)
+    navigation: truth                  # what the stack flies on: truth (the paper) | sensors (our filter)
     profile: iowa                      # iowa | corrected
     hull: null                         # null: hull generated from the offsets; or a surface directory
     limits:
@@ -63,6 +68,7 @@ from bb2_planner.bernstein import BernsteinPath, PathError, frame_matrix_to_nati
 from bb2_planner.terrain import PathBelowTerrainError, Terrain, TerrainError, TerrainOutOfBoundsError
 from bb2_sim.environment import Environment, current_from_mapping, sea_from_mapping
 from bb2_sim.sea import SeaInputError
+from bb2_sim.sensors.config import SensorConfigError, SensorSpec, navigation_from_value, sensors_from_mapping
 
 __all__ = ["MissionError", "InitialState", "Limits", "Mission", "MISSIONS_DIR", "RPS_PATH_MEAN_SPEED", "FORMAT",
            "load_mission", "mission_from_dict", "initial_state"]
@@ -72,7 +78,7 @@ RPS_PATH_MEAN_SPEED = "path_mean_speed"
 RPS_PATH_MEAN_SPEED = "path_mean_speed"
 _TOP_KEYS = {"name", "description", "extends", "path", "stack", "adaptation", "terrain", "initial", "rps",
              "duration_s", "duration_margin", "sea_state", "sea", "current", "profile", "hull", "limits",
-             "format"}
+             "format", "sensors", "navigation"}
 _INITIAL_KEYS = {"position_m", "frame", "offset_m", "heading_deg", "pitch_deg", "speed_mps"}
 _LIMIT_KEYS = {"min_hull_clearance_m", "max_cg_z_m"}
 FORMAT = "bb2_mission/1"
@@ -125,6 +131,8 @@ class Mission:
     description: str = ""
     source_file: Path | None = None
     environment: Environment = Environment()   #: the sea and current (its sea is the table's sea_state if none)
+    sensors: SensorSpec | None = field(default=None, compare=False)  #: sensor suite, seed, faults (None: none)
+    navigation: str = "truth"                  #: what the stack flies on: truth (the paper) | sensors
 
     @property
     def duration(self) -> float:
@@ -330,6 +338,11 @@ def mission_from_dict(doc: Mapping[str, Any], *, base_dir: Path | None = None, n
                                "(sea: {sea_state: S} is the same table)")
         sea = sea_from_mapping(sea_doc if sea_doc is not None else {"sea_state": sea_state}, base_dir=base_dir)
         environment = Environment(sea, current_from_mapping(doc.get("current")))
+        try:
+            sensors = sensors_from_mapping(doc.get("sensors"), base_dir=base_dir)
+            navigation = navigation_from_value(doc.get("navigation"), sensors)
+        except SensorConfigError as e:
+            raise MissionError(str(e)) from None
         if sea.authors_table:
             sea_state = sea.sea_state
         profile = doc.get("profile", "iowa")
@@ -362,7 +375,7 @@ def mission_from_dict(doc: Mapping[str, Any], *, base_dir: Path | None = None, n
                     adaptation=adaptation, terrain=terrain, terrain_source=terrain_source, initial=initial,
                     rps=rps, duration_s=duration, duration_margin=margin, sea_state=sea_state,
                     profile=str(profile), hull=hull, limits=limits, description=str(doc.get("description", "")),
-                    source_file=source_file, environment=environment)
+                    source_file=source_file, environment=environment, sensors=sensors, navigation=navigation)
         x0 = initial_state(m)   # validates the initial state against the path (e.g. zero path speed)
         if terrain is not None:
             try:

@@ -112,6 +112,10 @@ QOS: dict[str, QosDescription] = {
     "clock": QosDescription("best_effort", "volatile", "keep_last", 1),
     # status / diagnostics
     "status": QosDescription("reliable", "volatile", "keep_last", 10),
+    # the sensor models' measurements (/bb2/sensors/*): several samples of a sensor may go out in one ROM step
+    # (an IMU at 200 Hz: 10 per 0.05 s), so the writer is reliable and keeps 100; a best-effort reader
+    # (qos_profile_sensor_data) matches it as well as a reliable one
+    "measurement": QosDescription("reliable", "volatile", "keep_last", 100),
 }
 
 
@@ -199,6 +203,33 @@ CONTRACT: tuple[TopicSpec, ...] = (
     TopicSpec("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", "status", "-",
               "key/values, as /bb2/status", SIM, (RECORDER, EXTERNAL),
               "the same statuses on the standard ROS diagnostics topic (rqt_robot_monitor, diagnostic_aggregator)"),
+    # the sensor models (bb2_sim.sensors; the mission's sensors: block): measurements with honest covariances,
+    # each at its own rate, stamped with its time of validity, in its mounting frame (SENSOR_FRAMES)
+    TopicSpec("/bb2/sensors/imu", "sensor_msgs/msg/Imu", "measurement", "imu_link",
+              "quaternion (imu_link in map, ENU: REP-145); rad/s; m/s^2 (specific force); covariances", SIM,
+              (RECORDER, EXTERNAL), "IMU: gyros, accelerometers (noise, biases, scale, misalignment), AHRS attitude"),
+    TopicSpec("/bb2/sensors/pressure", "sensor_msgs/msg/FluidPressure", "measurement", "pressure_link",
+              "Pa (absolute: the day's atmosphere + water column incl. the wave pressure); variance Pa^2", SIM,
+              (RECORDER, EXTERNAL), "pressure (depth) sensor: noise, resolution, zero offset"),
+    TopicSpec("/bb2/sensors/dvl", "geometry_msgs/msg/TwistWithCovarianceStamped", "measurement", "dvl_link",
+              "m/s, velocity of the DVL over the bottom in dvl_link; covariance (angular block -1: not measured)",
+              SIM, (RECORDER, EXTERNAL), "DVL bottom track: only while the DVL has bottom lock"),
+    TopicSpec("/bb2/sensors/dvl/water_track", "geometry_msgs/msg/TwistWithCovarianceStamped", "measurement",
+              "dvl_link", "m/s, velocity of the DVL through the water in dvl_link; covariance", SIM,
+              (RECORDER, EXTERNAL), "DVL water track: the pings without bottom lock (beyond range, large attitude)"),
+    TopicSpec("/bb2/sensors/dvl/ranges", "sensor_msgs/msg/Range", "measurement", "dvl_beam_0 .. dvl_beam_3",
+              "m (float32) slant range along each beam (x of its frame); +inf no echo (REP-117)", SIM,
+              (RECORDER, EXTERNAL), "DVL per-beam ranges: one message per beam per ping"),
+    TopicSpec("/bb2/sensors/altimeter", "sensor_msgs/msg/Range", "measurement", "altimeter_link",
+              "m (float32) along the boresight (x of altimeter_link, down); +inf beyond max range (REP-117)", SIM,
+              (RECORDER, EXTERNAL), "altimeter: noise, max range, dropped pings (no message)"),
+    TopicSpec("/bb2/sensors/gps", "sensor_msgs/msg/NavSatFix", "measurement", "gps_link",
+              "deg, deg, m (ellipsoidal); ENU covariance m^2; status NO_FIX (-1) under water / before the first fix",
+              SIM, (RECORDER, EXTERNAL), "GPS at the sail top: a fix only while the antenna is above the surface"),
+    TopicSpec("/bb2/sensors/mountings", "std_msgs/msg/String", "latched", "base_link",
+              "JSON (format bb2_sensor_mountings/1): frame, parent base_link, translation m, quaternion (x, y, z, w), "
+              "rate_hz per sensor; the suite and its seed", SIM, (RECORDER, EXTERNAL),
+              "the sensors' mountings (the /tf_static of the suite: tf2_msgs is not in the wheels) and rates"),
     TopicSpec("/tf", "tf2_msgs/msg/TFMessage", "command", "odom -> base_link", "m, quaternion",
               RECORDER, (EXTERNAL,), "derived from /bb2/odom by the recorder (bags only)",
               bag_only=True),

@@ -44,11 +44,21 @@ other one is read-only (fixed at start-up; the set is refused):
                        ``current:`` blocks (the mission file's keys, :mod:`bb2_sim.environment`) replace the
                        mission's, or a sea description of format ``bb2_sea/1`` (the ``/bb2/sea`` JSON of a bag),
                        which rebuilds that run's sea exactly.
+``sensor_suite``       "" = the mission's ``sensors:`` block; ``none``; or ``tactical`` | ``mems`` | a suite FILE (with
+                       the mission's sensor seed and faults): the sensor models (:mod:`bb2_sim.sensors`) whose
+                       measurements go out on ``/bb2/sensors/*``, each at its own rate (below).
 ``status_period_s``    wall period of ``/bb2/status``.
 ``warn_throttle_s``    at most one warning of a kind per this many wall seconds.
 ``strict_remaps``      a ``-r`` rule naming no topic of this node is an error (else a warning).
 
 ``/bb2/sea`` (latched, once at start) carries the sea and current as JSON, so a bag holds its sea.
+
+Sensors (a suite from the mission or ``sensor_suite``): once the step from ``t_n`` is integrated, every sensor
+sample whose time falls in ``[t_n, t_n+1)`` (each sensor at its own rate, from the truth interpolated between the
+two states: :class:`bb2_sim.sensors.SensorSuite`) and is out of the sensor (latency) goes out on
+``/bb2/sensors/imu``, ``pressure``, ``dvl`` (bottom track) or ``dvl/water_track``, ``dvl/ranges``, ``altimeter``,
+``gps``, stamped with its time of validity; ``/bb2/sensors/mountings`` (latched) gives the mounting frames and
+rates (the suite's /tf_static).  In lockstep the measurements are a function of the seed alone.
 
 ``/clock`` goes to ``t_n+1`` when the step from ``t_n`` starts (the commands of ``t_n`` are in), before the
 integration, so the nodes on sim time handle it while the ROM steps, not when they must answer the state.
@@ -84,12 +94,14 @@ import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from bb2_mission.components import build_model, build_simulator, nominal_rps
+from bb2_mission.components import build_model, build_sensor_suite, build_simulator, nominal_rps, sensor_spec
 from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, StepDecision,
                                        TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
+from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS, mountings_json, sample_messages
 from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT, message_class, qos_profile, topic
 from bb2_sim.integrator import NonFiniteStateError
+from bb2_sim.sensors.truth import truth_from_step
 from bb2_sim.state import VehicleState
 
 from bb2_ros.node_common import (NodeConfigError, Throttle, build_piece, check_remaps, declare, mission_only,
@@ -97,8 +109,9 @@ from bb2_ros.node_common import (NodeConfigError, Throttle, build_piece, check_r
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics")
-LATCHED_OUT = ("/bb2/sea",)   # a late reader still gets it: no reason to wait for one before the first step
-TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd")
+# a late reader still gets these: no reason to wait for one before the first step
+LATCHED_OUT = ("/bb2/sea", "/bb2/sensors/mountings")
+TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress")  # progress: end_at_progress
 TWO_PI = 2.0 * math.pi
 
 
@@ -154,9 +167,15 @@ class Simulator(Node):
                      "for the steps to come (a finished run stays finished)", self._set_duration, None)
         self.exit_at_end = L("exit_at_end", False, "exit 0 when the duration is reached (set true on a finished "
                              "run: it exits now)", self._set_exit_at_end, None)
+        self._path_flown = False  # /bb2/mission/progress reached 1 (end_at_progress)
+        self.end_at_progress = bool(P("end_at_progress", False, "also end the run (as at the duration) once "
+                                      "/bb2/mission/progress reaches 1: the path flown, where bb2-launch and the "
+                                      "library runner end it (the launch files set it)"))
         csv_path = P("trajectory_csv", "", "write t and the native state of every step to this CSV ('' = off)")
         sea_file = P("sea_file", "", "'' = the mission's sea and current; else a YAML/JSON file with sea: and/or "
                                      "current: blocks, or a bb2_sea/1 description (a bag's /bb2/sea), replacing them")
+        sensor_suite = str(P("sensor_suite", "", "'' = the mission's sensors: block; none; or tactical | mems | "
+                                                 "a suite FILE (with the mission's sensor seed and faults)"))
         self.min_state_subscribers = int(P("min_state_subscribers", 0,
                                            "wait for this many /bb2/state_native readers before the first step"))
         self._readers_since: float | None = None
@@ -168,7 +187,7 @@ class Simulator(Node):
         throttle_s = L("warn_throttle_s", 2.0, "at most one warning of a kind per this many wall seconds",
                        lambda v: setattr(self.warn, "period_s", v), positive("warn_throttle_s"))
         strict = bool(P("strict_remaps", False, "a remap rule naming no topic of this node is an error"))
-        check_remaps(node, argv, TOPICS_OUT + TOPICS_IN, strict=strict)
+        check_remaps(node, argv, TOPICS_OUT + TOPICS_IN + SENSOR_TOPICS, strict=strict)
 
         # this node's pieces only: the ROM at the mission's initial state and the stack's nominal propeller
         self.mission = mission_only(self.mission_file)
@@ -176,6 +195,8 @@ class Simulator(Node):
                                                                                        self.mission.environment)
         self.sim = build_piece(self.mission, lambda m: build_simulator(m, build_model(m, self.environment)))
         self.terrain = self.mission.terrain
+        self.sensor_spec = build_piece(self.mission, lambda m: sensor_spec(m, sensor_suite))
+        self.suite = build_piece(self.mission, lambda m: build_sensor_suite(m, self.sim.model, self.sensor_spec))
         self.g = float(self.sim.model.params.g)
         self.h = float(self.sim.h)
         if duration < 0:
@@ -196,10 +217,17 @@ class Simulator(Node):
             return node.create_publisher(message_class(topic(name).type), name, qos_profile(name))
 
         self.pub = {n: pub(n) for n in TOPICS_OUT if n != "/bb2/altitude" or self.terrain is not None}
+        if self.suite is not None:
+            self.pub.update({n: pub(n) for n in SENSOR_TOPICS})
         self.sub_planes = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd",
                                                    self._locked(self._on_planes), qos_profile("/bb2/planes/cmd"))
         self.sub_prop = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/propeller/cmd",
                                                  self._locked(self._on_propeller), qos_profile("/bb2/propeller/cmd"))
+        if self.end_at_progress:
+            self.sub_progress = node.create_subscription(
+                message_class("std_msgs/msg/Float64"), "/bb2/mission/progress",
+                self._locked(lambda m: setattr(self, "_path_flown", self._path_flown or m.data >= 1.0)),
+                qos_profile("/bb2/mission/progress"))
         self.warn = Throttle(node.get_logger(), throttle_s)
         self.overruns = 0  # real time: steps later than a whole period (the stepping thread's own count)
         self._csv_fh = open(csv_path, "w", newline="") if csv_path else None
@@ -209,6 +237,9 @@ class Simulator(Node):
 
         from std_msgs.msg import String
         self.pub["/bb2/sea"].publish(String(data=self.environment.description_json(self.g)))
+        if self.suite is not None:
+            self.pub["/bb2/sensors/mountings"].publish(String(data=mountings_json(self.suite.config,
+                                                                                 self.sensor_spec.seed)))
 
         self.finished = False
         self.diverged = ""
@@ -307,9 +338,9 @@ class Simulator(Node):
     def _start(self) -> None:
         """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
         after ``startup_timeout_s``), so that a recorder or a test started with the graph misses nothing."""
-        n = self.count_subscribers("/bb2/state_native")
-        unread = [t for t in self.pub if t not in LATCHED_OUT and self.count_subscribers(t) == 0] \
-            if self.wait_for_readers else []
+        n = self.count_subscribers(self.resolve_topic_name("/bb2/state_native"))  # rclpy counts unremapped names
+        readers = lambda t: self.count_subscribers(self.resolve_topic_name(t))  # noqa: E731  (after -r remaps)
+        unread = [t for t in self.pub if t not in LATCHED_OUT and readers(t) == 0] if self.wait_for_readers else []
         now = time.monotonic()
         if self.wait_for_readers and not unread:  # every topic read: let the readers' side match too
             self._readers_since = self._readers_since or now
@@ -435,7 +466,7 @@ class Simulator(Node):
             self._publish_status()
             self.done = self.exit_at_end
             return
-        finished = self.t >= self.duration_s - 1e-9
+        finished = self.t >= self.duration_s - 1e-9 or self._path_flown
         if not finished:
             self._publish_trigger(clock=False)  # first: the controllers work on step n+1 while the sensors go out
         t = rec.t
@@ -443,6 +474,8 @@ class Simulator(Node):
         self.pub["/bb2/imu"].publish(cv.imu_message(state, f_flu))
         self.pub["/bb2/planes/state"].publish(cv.planes_message(t, np.radians(rec.act.planes_deg)))
         self.pub["/bb2/propeller/state"].publish(cv.propeller_message(t, rec.act.rps * TWO_PI))
+        if self.suite is not None:
+            self._publish_measurements(state, rec)
         if finished:
             self._publish_trigger(clock=False)
             self._publish_sensors()
@@ -452,6 +485,23 @@ class Simulator(Node):
             self.done = self.exit_at_end
             return
         self._publish_sensors()
+
+    def _clearance(self, p_native) -> float:
+        if self.terrain is None:
+            return math.nan
+        try:
+            return float(self.terrain.clearance(p_native))
+        except ValueError:  # off the terrain grid
+            return math.nan
+
+    def _publish_measurements(self, state: VehicleState, rec) -> None:
+        """The sensor samples of ``[t_n, t_n+1)`` (the step just integrated from ``state``)."""
+        x_n = state.as_vector()
+        a = truth_from_step(state.t, x_n, rec.ev.xdot, self._clearance(x_n[0:3]), self.g)
+        b = truth_from_step(self.sim.t, self.sim.x, None, self._clearance(self.sim.x[0:3]), self.g)
+        for s in self.suite.step(a, b):
+            for name, msg in sample_messages(s, self.suite.config):
+                self.pub[name].publish(msg)
 
     def _publish_state(self) -> None:
         self._publish_trigger()

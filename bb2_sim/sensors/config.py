@@ -22,7 +22,7 @@ import yaml
 __all__ = ["SensorConfigError", "FORMAT", "PRESETS", "DATA_DIR", "SENSOR_NAMES", "Mounting", "GyroConfig",
            "AccelConfig", "AhrsConfig", "ImuConfig", "PressureConfig", "DvlConfig", "AltimeterConfig",
            "GpsConfig", "FaultSpec", "SuiteConfig", "load_suite_config", "suite_config_from_mapping",
-           "faults_from_list"]
+           "faults_from_list", "SensorSpec", "sensors_from_mapping", "navigation_from_value", "NAVIGATION_MODES"]
 
 FORMAT = "bb2_sensor_suite/1"
 DATA_DIR = Path(__file__).resolve().parents[1] / "data"
@@ -510,3 +510,57 @@ def load_suite_config(spec: "str | Path | Mapping[str, Any]", *, base_dir: Path 
         return suite_config_from_mapping(spec, where="inline sensor suite", base_dir=base_dir)
     p = _resolve(str(spec), base_dir)
     return suite_config_from_mapping(_read(p), where=str(p), base_dir=p.parent, name=p.stem)
+
+
+# ------------------------------------------------------------------------------------------ mission block
+NAVIGATION_MODES = ("truth", "sensors")
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """The ``sensors:`` block of a mission: the suite, its seed and the mission's faults (added to the suite's)."""
+
+    suite: SuiteConfig
+    seed: int = 0
+    faults: tuple[FaultSpec, ...] = ()
+    suite_source: str = ""
+
+    def all_faults(self) -> tuple[FaultSpec, ...]:
+        return self.suite.faults + self.faults
+
+
+def sensors_from_mapping(doc: Any, *, base_dir: Path | None = None, where: str = "sensors") -> SensorSpec | None:
+    """``sensors: tactical | mems | FILE | none`` or ``sensors: {suite: ..., seed: 0, faults: [...]}``
+    (``suite`` may also be an inline suite mapping).  None / ``none``: no sensor suite."""
+    if doc is None or (isinstance(doc, str) and doc.lower() == "none"):
+        return None
+    if isinstance(doc, str):
+        doc = {"suite": doc}
+    if not isinstance(doc, Mapping):
+        raise SensorConfigError(f"{where} must be tactical | mems | FILE | none, or a mapping with suite, seed, "
+                                f"faults; got {doc!r}")
+    bad = sorted(set(doc) - {"suite", "seed", "faults"})
+    if bad:
+        raise SensorConfigError(f"unknown key(s) in {where}: {bad}; allowed: ['faults', 'seed', 'suite']")
+    spec = doc.get("suite", "tactical")
+    suite = load_suite_config(spec, base_dir=base_dir)
+    seed = doc.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise SensorConfigError(f"{where}.seed must be an integer >= 0, got {seed!r}")
+    faults = faults_from_list(doc.get("faults"), f"{where}.faults")
+    present = suite.sensors()
+    for f in faults:
+        if f.sensor not in present:
+            raise SensorConfigError(f"{where}.faults names the {f.sensor}, which the suite {suite.name!r} does not "
+                                    f"have")
+    return SensorSpec(suite, int(seed), faults, spec if isinstance(spec, str) else "inline")
+
+
+def navigation_from_value(v: Any, sensors: SensorSpec | None, where: str = "navigation") -> str:
+    if v is None:
+        return "truth"
+    if v not in NAVIGATION_MODES:
+        raise SensorConfigError(f"{where} must be one of {list(NAVIGATION_MODES)}, got {v!r}")
+    if v == "sensors" and sensors is None:
+        raise SensorConfigError(f"{where}: sensors needs a sensors: block (the suite to navigate on)")
+    return str(v)

@@ -1,0 +1,96 @@
+"""Sensor samples -> /bb2/sensors/* messages (bb2_msgs_py.sensor_conversions): fields, frames, covariances,
+NavSatStatus, REP-117 ranges, the mountings description; the mission's sensors:/navigation: keys."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("sensor_msgs.msg")
+
+from bb2_msgs_py import sensor_conversions as sc  # noqa: E402
+from bb2_msgs_py.contract import message_class, topic  # noqa: E402
+from bb2_sim.sensors import SensorSuite, load_suite_config, truth_from_step  # noqa: E402
+
+
+def _samples(z=-60.0, clearance=50.0, duration=2.0):
+    truths = []
+    for n in range(int(duration / 0.05) + 1):
+        x = np.zeros(12)
+        x[0], x[2], x[6] = -3.0 * n * 0.05, z, -3.0
+        truths.append(truth_from_step(n * 0.05, x, None, clearance))
+    suite = SensorSuite(load_suite_config("tactical"), seed=1)
+    return suite, suite.run(truths)
+
+
+def test_every_sample_becomes_its_contract_message():
+    suite, samples = _samples()
+    seen = set()
+    for s in samples:
+        for name, msg in sc.sample_messages(s, suite.config):
+            assert isinstance(msg, message_class(topic(name).type)), name
+            seen.add(name)
+    assert seen == set(sc.SENSOR_TOPICS) - {"/bb2/sensors/mountings", sc.DVL_WATER_TOPIC}
+    imu = next(s for s in samples if s.sensor == "imu")
+    d = sc.imu_sample_from_message(sc.imu_sample_message(imu))
+    np.testing.assert_array_equal(d["w"], imu.angular_velocity)
+    np.testing.assert_array_equal(d["cov_w"], imu.angular_velocity_covariance)
+    assert d["frame_id"] == "imu_link" and d["t"] == pytest.approx(imu.t)
+    dvl = next(s for s in samples if s.sensor == "dvl")
+    m = sc.dvl_sample_message(dvl)
+    np.testing.assert_array_equal(sc.dvl_from_message(m)["v"], dvl.velocity)
+    assert np.array(m.twist.covariance).reshape(6, 6)[3, 3] == -1.0
+    ranges = sc.dvl_range_messages(dvl, 1.0, 200.0)
+    assert [r.header.frame_id for r in ranges] == [f"dvl_beam_{i}" for i in range(4)]
+
+
+def test_gps_status_and_ranges_out_of_reach():
+    suite, samples = _samples(z=-60.0, clearance=400.0)
+    gps = next(s for s in samples if s.sensor == "gps")
+    m = sc.gps_sample_message(gps)
+    assert m.status.status == m.status.STATUS_NO_FIX and m.position_covariance_type == 0
+    assert math.isnan(m.latitude)
+    alt = next(s for s in samples if s.sensor == "altimeter")
+    assert sc.altimeter_sample_message(alt).range == math.inf
+    _, up = _samples(z=-8.0, duration=6.0)
+    fix = [s for s in up if s.sensor == "gps" and s.fix][0]
+    m = sc.gps_sample_message(fix)
+    assert m.status.status == m.status.STATUS_FIX and m.position_covariance_type == 2
+    assert m.latitude == pytest.approx(32.86, abs=1e-3) and m.position_covariance[0] == pytest.approx(1.0)
+
+
+def test_mountings_description():
+    cfg = load_suite_config("mems")
+    d = json.loads(sc.mountings_json(cfg, seed=3))
+    tf = {t["child"]: t for t in d["transforms"]}
+    assert tf["gps_link"]["translation_m"] == [8.763, 0.0, 11.401]
+    q = np.array(tf["altimeter_link"]["rotation_xyzw"])     # pitch +90 deg: x (the beam) points down
+    from scipy.spatial.transform import Rotation
+    np.testing.assert_allclose(Rotation.from_quat(q).apply([1, 0, 0]), [0, 0, -1], atol=1e-12)
+    b0 = Rotation.from_quat(tf["dvl_beam_0"]["rotation_xyzw"]).apply([1, 0, 0])
+    np.testing.assert_allclose(b0, cfg.dvl.beams_dvl()[0], atol=1e-12)
+    assert d["rates_hz"] == {"imu": 100.0, "pressure": 10.0, "dvl": 4.0, "altimeter": 2.0, "gps": 1.0}
+
+
+def test_mission_sensors_and_navigation_keys(tmp_path):
+    from bb2_mission.components import sensor_spec
+    from bb2_mission.schema import MissionError, load_mission
+
+    f = tmp_path / "m.yaml"
+    base = f"extends: {Path(__file__).resolve().parents[2] / 'missions' / 'canyon.yaml'}\n"
+    f.write_text(base + "sensors: {suite: mems, seed: 4, faults: [{sensor: gps, kind: dropout, start_s: 1}]}\n"
+                 "navigation: sensors\n")
+    m = load_mission(f)
+    assert m.sensors.suite.name == "mems" and m.sensors.seed == 4 and m.navigation == "sensors"
+    assert sensor_spec(m, "none") is None and sensor_spec(m, "tactical").suite.name == "tactical"
+    assert sensor_spec(m, "tactical").seed == 4
+    assert load_mission(base.split(" ", 1)[1].strip()).sensors is None
+    for bad, msg in (("navigation: sensors\n", "needs a sensors: block"), ("sensors: gold\n", "neither a preset"),
+                     ("navigation: gps\n", "navigation must be one of"),
+                     ("sensors: {suite: tactical, seed: -1}\n", "seed must be an integer")):
+        f.write_text(base + bad)
+        with pytest.raises(MissionError, match=msg):
+            load_mission(f)
