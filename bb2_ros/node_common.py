@@ -246,7 +246,7 @@ def check_remaps(node, argv: Sequence[str], topics: Iterable[str], *, strict: bo
 
     Returns the messages; with ``strict`` raises :class:`NodeConfigError` instead.
     """
-    known = set(topics)
+    known = set(topics) | {"/clock", "/diagnostics"}  # every node may use sim time and publishes diagnostics
     known |= {t.lstrip("/") for t in known}
     bad = []
     for target, lhs, rhs in remap_rules(argv):
@@ -380,10 +380,13 @@ def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str]
                 _node_of(shell).destroy_node()
             except Exception:  # pragma: no cover - best effort at shutdown
                 pass
-        for s, h in previous.items():
-            signal.signal(s, h)
         if rclpy.ok():
             rclpy.shutdown()
+        # a node told to stop ignores further stop signals until it has exited: Ctrl-C reaches the whole process
+        # group of `ros2 launch`, which then forwards its own SIGINT, and a KeyboardInterrupt raised while the
+        # interpreter tears the middleware down aborts the process (exit -6)
+        for s, h in previous.items():
+            signal.signal(s, signal.SIG_IGN if stop.is_set() else h)
     return code
 
 

@@ -111,7 +111,7 @@ TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/dept
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics")
 # a late reader still gets these: no reason to wait for one before the first step
 LATCHED_OUT = ("/bb2/sea", "/bb2/sensors/mountings")
-TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd")
+TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress")  # progress: end_at_progress
 TWO_PI = 2.0 * math.pi
 
 
@@ -167,6 +167,10 @@ class Simulator(Node):
                      "for the steps to come (a finished run stays finished)", self._set_duration, None)
         self.exit_at_end = L("exit_at_end", False, "exit 0 when the duration is reached (set true on a finished "
                              "run: it exits now)", self._set_exit_at_end, None)
+        self._path_flown = False  # /bb2/mission/progress reached 1 (end_at_progress)
+        self.end_at_progress = bool(P("end_at_progress", False, "also end the run (as at the duration) once "
+                                      "/bb2/mission/progress reaches 1: the path flown, where bb2-launch and the "
+                                      "library runner end it (the launch files set it)"))
         csv_path = P("trajectory_csv", "", "write t and the native state of every step to this CSV ('' = off)")
         sea_file = P("sea_file", "", "'' = the mission's sea and current; else a YAML/JSON file with sea: and/or "
                                      "current: blocks, or a bb2_sea/1 description (a bag's /bb2/sea), replacing them")
@@ -219,6 +223,11 @@ class Simulator(Node):
                                                    self._locked(self._on_planes), qos_profile("/bb2/planes/cmd"))
         self.sub_prop = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/propeller/cmd",
                                                  self._locked(self._on_propeller), qos_profile("/bb2/propeller/cmd"))
+        if self.end_at_progress:
+            self.sub_progress = node.create_subscription(
+                message_class("std_msgs/msg/Float64"), "/bb2/mission/progress",
+                self._locked(lambda m: setattr(self, "_path_flown", self._path_flown or m.data >= 1.0)),
+                qos_profile("/bb2/mission/progress"))
         self.warn = Throttle(node.get_logger(), throttle_s)
         self.overruns = 0  # real time: steps later than a whole period (the stepping thread's own count)
         self._csv_fh = open(csv_path, "w", newline="") if csv_path else None
@@ -329,9 +338,9 @@ class Simulator(Node):
     def _start(self) -> None:
         """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
         after ``startup_timeout_s``), so that a recorder or a test started with the graph misses nothing."""
-        n = self.count_subscribers("/bb2/state_native")
-        unread = [t for t in self.pub if t not in LATCHED_OUT and self.count_subscribers(t) == 0] \
-            if self.wait_for_readers else []
+        n = self.count_subscribers(self.resolve_topic_name("/bb2/state_native"))  # rclpy counts unremapped names
+        readers = lambda t: self.count_subscribers(self.resolve_topic_name(t))  # noqa: E731  (after -r remaps)
+        unread = [t for t in self.pub if t not in LATCHED_OUT and readers(t) == 0] if self.wait_for_readers else []
         now = time.monotonic()
         if self.wait_for_readers and not unread:  # every topic read: let the readers' side match too
             self._readers_since = self._readers_since or now
@@ -457,7 +466,7 @@ class Simulator(Node):
             self._publish_status()
             self.done = self.exit_at_end
             return
-        finished = self.t >= self.duration_s - 1e-9
+        finished = self.t >= self.duration_s - 1e-9 or self._path_flown
         if not finished:
             self._publish_trigger(clock=False)  # first: the controllers work on step n+1 while the sensors go out
         t = rec.t

@@ -131,6 +131,8 @@ def stage(pkg_dir: Path, out: Path, python: str = sys.executable) -> Path:
 
 def check_code_importable(pkg_dirs: list[Path]) -> None:
     for p in pkg_dirs:
+        if not (p / p.name).exists():  # a launch-only package (bb2_bringup): no Python code
+            continue
         if importlib.util.find_spec(p.name) is None:
             raise WorkspaceError(f"Python package {p.name} is not importable here: install the project first "
                                  f"({sys.executable} -m pip install -e <repo>)")

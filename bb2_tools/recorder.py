@@ -366,10 +366,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         path = rec.close()
         counts = {n: t.message_count for n, t in bag.topics.items()}
         print(f"bb2-record: wrote {bag.message_count} messages to {path}: {counts}", flush=True)
-        for s, h in previous.items():
-            signal.signal(s, h)
         if rclpy.ok():
             rclpy.shutdown()
+        for s, h in previous.items():  # told to stop: ignore further stop signals until exited (see run_node)
+            signal.signal(s, signal.SIG_IGN if stop.is_set() else h)
     return code
 
 

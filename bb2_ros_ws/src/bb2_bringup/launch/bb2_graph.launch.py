@@ -1,0 +1,157 @@
+"""The BB2 graph, one boat: ``ros2 launch bb2_bringup bb2_graph.launch.py [argument:=value ...]``.
+
+Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
+
+  mission      canyon (a mission installed in share/bb2_bringup/missions, without .yaml) or a mission FILE
+  time_mode    lockstep | realtime
+  record       true | false: the recorder writes every topic to a rosbag2 MCAP bag
+  bag          the bag directory ('' = <bag_dir>/<mission>_<YYYYmmdd_HHMMSS>[_<namespace>])
+  bag_dir      where bags go when bag is '' (default bags, relative to the working directory)
+  namespace    '' or NAME: the boat's nodes run in /NAME and its topics are /NAME/bb2/... and /NAME/clock
+               (several boats side by side without crosstalk; fleet.launch.py starts several)
+  params_file  the graph's params file (default share/bb2_bringup/config/bb2_graph.yaml)
+
+It starts what ``bb2-launch`` starts — simulator, planner, path_following, l1_autopilot, mixer and (record) the
+recorder, each its own process, the recorder and the planner at nice +10 — with the same parameters: the
+params file, then the mission, the time mode, use_sim_time (the simulator is the clock) and, in lockstep with a
+recorder, ``wait_for_readers`` (the bag misses nothing).  The simulator ends the run where bb2-launch does (the
+mission duration, or ``end_at_progress``: the path flown) and exits; its exit stops the whole launch (the
+recorder finishes its bag on the SIGINT).  Ctrl-C stops every node cleanly.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler
+from launch.event_handlers import OnProcessExit
+from launch.events import Shutdown
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+SHARE = Path(get_package_share_directory("bb2_bringup"))
+NOT_REMAPPED = ("/diagnostics", "/tf")  # the standard diagnostics topic is global; /tf is written into bags only
+BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
+
+ARGUMENTS = {
+    "mission": ("canyon", "a mission in share/bb2_bringup/missions (name without .yaml) or a mission file"),
+    "time_mode": ("lockstep", "lockstep | realtime"),
+    "record": ("true", "true | false: record every topic to a rosbag2 MCAP bag"),
+    "bag": ("", "bag directory ('' = <bag_dir>/<mission>_<YYYYmmdd_HHMMSS>[_<namespace>])"),
+    "bag_dir": ("bags", "where bags go when bag is ''"),
+    "namespace": ("", "'' or NAME: nodes in /NAME, topics /NAME/bb2/... and /NAME/clock"),
+    "params_file": (str(SHARE / "config" / "bb2_graph.yaml"), "the graph's ROS 2 params file"),
+}
+
+
+def mission_file(value: str) -> Path:
+    """A mission name (installed) or a file."""
+    p = Path(value).expanduser()
+    if p.suffix in (".yaml", ".yml") or "/" in value:
+        if not p.is_file():
+            raise RuntimeError(f"mission file {p} does not exist")
+        return p.resolve()
+    f = SHARE / "missions" / f"{value}.yaml"
+    if not f.is_file():
+        names = sorted(m.stem for m in (SHARE / "missions").glob("*.yaml"))
+        raise RuntimeError(f"no mission {value!r} in {SHARE / 'missions'} (there: {', '.join(names)})")
+    return f
+
+
+def flag(value: str, name: str) -> bool:
+    v = value.strip().lower()
+    if v not in ("true", "false"):
+        raise RuntimeError(f"launch argument {name} must be true or false, got {value!r}")
+    return v == "true"
+
+
+NODE_TOPICS = {  # the topics each controller node uses (its TOPICS), besides /clock
+    "planner": ("/bb2/path", "/bb2/path/bernstein", "/bb2/status"),
+    "path_following": ("/bb2/state_native", "/bb2/odom", "/bb2/path/bernstein", "/bb2/guidance/rate_cmd",
+                       "/bb2/guidance/path_error", "/bb2/mission/progress", "/bb2/status"),
+    "l1_autopilot": ("/bb2/state_native", "/bb2/odom", "/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd",
+                     "/bb2/propeller/cmd", "/bb2/status"),
+    "mixer": ("/bb2/autopilot/vh_cmd", "/bb2/planes/cmd", "/bb2/status"),
+}
+
+
+def remappings(namespace: str, node: str) -> list[tuple[str, str]]:
+    """The topics of ``node`` (and /clock) under /NAMESPACE; none without a namespace.  The simulator's are the
+    contract topics it publishes and its inputs, the recorder's every contract topic."""
+    if not namespace:
+        return []
+    from bb2_msgs_py.contract import CONTRACT
+
+    if node == "simulator":
+        names = [t.name for t in CONTRACT if t.publisher == "simulator"] + [
+            "/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress"]
+    elif node == "recorder":
+        names = [t.name for t in CONTRACT]
+    else:
+        names = list(NODE_TOPICS[node])
+    ns = "/" + namespace.strip("/")
+    return [(n, ns + n) for n in dict.fromkeys(["/clock", *names]) if n not in NOT_REMAPPED]
+
+
+def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, namespace: str, params_file: str,
+         stop_launch: bool = True) -> list:
+    """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch)."""
+    if time_mode not in ("lockstep", "realtime"):
+        raise RuntimeError(f"launch argument time_mode must be lockstep or realtime, got {time_mode!r}")
+    ns = namespace.strip("/")
+    common = {"mission_file": str(mission)}
+    params = [params_file] if params_file else []
+
+    def node(package, executable, extra, *, background=False, arguments=()):
+        return Node(package=package, executable=executable, name=executable, namespace=ns or None,
+                    parameters=[*params, {**common, **extra}] if package == "bb2_ros" else [extra],
+                    remappings=remappings(ns, executable), arguments=list(arguments), output="screen",
+                    prefix=BACKGROUND if background else None)
+
+    actions = []
+    if record:
+        assert bag is not None
+        actions.append(node("bb2_tools", "recorder", {"bag_directory": str(bag), "use_sim_time": True},
+                            background=True))
+    actions += [
+        node("bb2_ros", "planner", {"use_sim_time": True}, background=True),
+        node("bb2_ros", "path_following", {"use_sim_time": True}),
+        node("bb2_ros", "l1_autopilot", {"use_sim_time": True}),
+        node("bb2_ros", "mixer", {"use_sim_time": True}),
+    ]
+    sim = node("bb2_ros", "simulator", {"use_sim_time": False, "time_mode": time_mode, "exit_at_end": True,
+                                        "end_at_progress": True,
+                                        "wait_for_readers": record and time_mode == "lockstep"})
+    actions.append(sim)
+    if stop_launch:
+        actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=lambda event, _ctx: [
+            LogInfo(msg=f"[bb2_bringup] simulator{' of ' + ns if ns else ''} exited (code {event.returncode}): "
+                        "stopping the graph"),
+            EmitEvent(event=Shutdown(reason="the simulator ended the run"))])))
+    return actions
+
+
+def default_bag(bag_dir: str, mission: Path, namespace: str) -> Path:
+    name = f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}" + (f"_{namespace.strip('/')}" if namespace else "")
+    return Path(bag_dir).expanduser().resolve() / name
+
+
+def _graph(context):
+    a = {k: LaunchConfiguration(k).perform(context) for k in ARGUMENTS}
+    mission = mission_file(a["mission"])
+    record = flag(a["record"], "record")
+    bag = (Path(a["bag"]).expanduser().resolve() if a["bag"] else default_bag(a["bag_dir"], mission, a["namespace"])) \
+        if record else None
+    acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
+                params_file=a["params_file"])
+    return [LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
+                        + (f" | namespace /{a['namespace'].strip('/')}" if a["namespace"] else "")
+                        + (f" | bag {bag}" if bag else " | not recorded")), *acts]
+
+
+def generate_launch_description():
+    return LaunchDescription([*(DeclareLaunchArgument(k, default_value=d, description=h)
+                                for k, (d, h) in ARGUMENTS.items()),
+                              OpaqueFunction(function=_graph)])

@@ -1,0 +1,81 @@
+"""Several BB2 boats in one launch: ``ros2 launch bb2_bringup fleet.launch.py boats:=boat1,boat2 [argument:=value]``.
+
+Each boat is the graph of ``bb2_graph.launch.py`` in its own namespace (nodes /boat1/simulator ..., topics
+/boat1/bb2/odom ..., its own /boat1/clock), so the boats fly side by side without crosstalk, each in lockstep
+with its own controllers (deterministic: a boat's run equals the same mission flown alone).  Arguments:
+
+  boats        comma-separated namespaces (default boat1,boat2)
+  missions     one mission (name or file) for every boat, or one per boat, comma-separated (default canyon)
+  time_mode    lockstep | realtime
+  record       true | false: a bag per boat, <bag_dir>/<fleet>_<date>/<boat>
+  bag_dir      default bags
+  params_file  the graph's params file
+
+The launch ends when every boat's simulator has ended its run (Ctrl-C stops every node cleanly).
+"""
+from __future__ import annotations
+
+import importlib.util
+import time
+from pathlib import Path
+
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler
+from launch.event_handlers import OnProcessExit
+from launch.events import Shutdown
+from launch.substitutions import LaunchConfiguration
+
+_spec = importlib.util.spec_from_file_location("bb2_graph_launch", Path(__file__).with_name("bb2_graph.launch.py"))
+graph = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(graph)
+
+ARGUMENTS = {
+    "boats": ("boat1,boat2", "comma-separated namespaces, one boat each"),
+    "missions": ("canyon", "one mission (name or file) for all, or one per boat, comma-separated"),
+    "time_mode": ("lockstep", "lockstep | realtime"),
+    "record": ("true", "true | false: one bag per boat, <bag_dir>/fleet_<date>/<boat>"),
+    "bag_dir": ("bags", "where the fleet's bags go"),
+    "params_file": (graph.ARGUMENTS["params_file"][0], "the graph's ROS 2 params file"),
+}
+
+
+def _fleet(context):
+    a = {k: LaunchConfiguration(k).perform(context) for k in ARGUMENTS}
+    boats = [b.strip().strip("/") for b in a["boats"].split(",") if b.strip()]
+    if not boats or len(set(boats)) != len(boats):
+        raise RuntimeError(f"launch argument boats must name distinct namespaces, got {a['boats']!r}")
+    missions = [m.strip() for m in a["missions"].split(",") if m.strip()]
+    if len(missions) == 1:
+        missions *= len(boats)
+    if len(missions) != len(boats):
+        raise RuntimeError(f"{len(missions)} missions for {len(boats)} boats")
+    record = graph.flag(a["record"], "record")
+    root = Path(a["bag_dir"]).expanduser().resolve() / f"fleet_{time.strftime('%Y%m%d_%H%M%S')}"
+    actions, sims = [], []
+    for ns, m in zip(boats, missions):
+        mission = graph.mission_file(m)
+        acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=root / ns if record else None,
+                          namespace=ns, params_file=a["params_file"], stop_launch=False)
+        sims.append(acts[-1])
+        actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}" + (f", bag {root / ns}" if record
+                                                                                 else "")), *acts]
+    ended: set[int] = set()
+    names = {id(sim): ns for sim, ns in zip(sims, boats)}
+
+    def on_exit(event, _ctx):
+        ended.add(id(event.action))
+        out = [LogInfo(msg=f"[bb2_bringup] /{names.get(id(event.action), '?')}/simulator exited "
+                           f"(code {event.returncode}); {len(ended)} of {len(sims)} boats done")]
+        if len(ended) == len(sims):
+            out.append(EmitEvent(event=Shutdown(reason="every boat ended its run")))
+        return out
+
+    for sim in sims:
+        actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=on_exit)))
+    return actions
+
+
+def generate_launch_description():
+    return LaunchDescription([*(DeclareLaunchArgument(k, default_value=d, description=h)
+                                for k, (d, h) in ARGUMENTS.items()),
+                              OpaqueFunction(function=_fleet)])

@@ -1,0 +1,125 @@
+"""Issue 13 (1): what a ROS 2 user runs: ``colcon build --symlink-install``, source the install space, then
+``ros2 launch bb2_bringup bb2_graph.launch.py`` flies a mission in lockstep and records a bag equal to
+bb2-launch's run of the same mission (every state, exactly), the simulator's end of the mission stops the whole
+launch, Ctrl-C (SIGINT to the launch's process group) stops every node cleanly with the bag finished, and
+``fleet.launch.py`` flies two namespaced boats at once without crosstalk (a boat's bag equals its run alone).
+
+Upstream tools from ../shared/ros2_tooling (tests/ros2_tooling.py; skipped with the reason when absent)."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from ros2_tooling import tooling_env, tooling_venv  # noqa: E402  (tests/ros2_tooling.py)
+from rosenv import ros_env  # noqa: E402
+
+pytestmark = pytest.mark.ros
+REPO = Path(__file__).resolve().parents[2]
+WS = REPO / "bb2_ros_ws"
+
+
+@pytest.fixture(scope="module")
+def ws(tmp_path_factory):
+    """The workspace built with --symlink-install; (the tooling env, the install space, a scratch dir)."""
+    env = tooling_env(tooling_venv())
+    tmp = tmp_path_factory.mktemp("bringup")
+    r = subprocess.run(["colcon", "--log-base", str(tmp / "log"), "build", "--symlink-install", "--build-base",
+                        str(tmp / "build"), "--install-base", str(tmp / "install")], cwd=WS, env=env,
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    share = tmp / "install" / "bb2_bringup" / "share" / "bb2_bringup"
+    assert (share / "launch" / "bb2_graph.launch.py").exists() and (share / "launch" / "fleet.launch.py").exists()
+    assert (share / "config" / "bb2_graph.yaml").exists() and (share / "missions" / "canyon.yaml").exists()
+    for name, ext in (("short", "canyon"), ("short_straight", "straight")):
+        (tmp / f"{name}.yaml").write_text(f"extends: {REPO / 'missions' / (ext + '.yaml')}\nname: {name}\n"
+                                          "duration_s: 2.5\n")
+    return env, tmp / "install", tmp
+
+
+def launch(ws, domain: int, *args: str) -> subprocess.Popen:
+    env, install, tmp = ws
+    return subprocess.Popen(["bash", "-c", f"source {install / 'setup.bash'} && exec ros2 launch bb2_bringup "
+                             + " ".join(args)], cwd=tmp, env=dict(env, ROS_DOMAIN_ID=str(domain)),
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+
+
+def states(bag: Path) -> dict[float, list[float]]:
+    """``t -> the exact state`` of every /bb2/state_native in a bag (re-sent states are equal)."""
+    from bb2_tools.bagfile import BagReader
+
+    out: dict[float, list[float]] = {}
+    for _name, _t, msg in BagReader(bag).messages("/bb2/state_native"):
+        d = list(msg.data)
+        assert out.setdefault(d[0], d) == d
+    return out
+
+
+def finish(p: subprocess.Popen, timeout: float) -> str:
+    try:
+        out, _ = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGINT)
+        out, _ = p.communicate(timeout=30)
+        pytest.fail(f"ros2 launch did not end by itself:\n{out[-3000:]}")
+    return out
+
+
+def test_ros2_launch_flies_a_mission_in_lockstep_and_records_the_bag_of_bb2_launch(ws):
+    env, install, tmp = ws
+    p = launch(ws, 214, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "time_mode:=lockstep",
+               "record:=true", f"bag:={tmp / 'launched'}")
+    out = finish(p, 180)
+    assert p.returncode == 0, out[-3000:]
+    assert "simulator exited (code 0): stopping the graph" in out
+    assert "process has finished cleanly" in out and "bb2-record: wrote" in out, out[-3000:]
+    assert "process has died" not in out, out[-3000:]
+    r = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(tmp / "short.yaml"), "--out",
+                        str(tmp / "bb2launch"), "--timeout", "120"], cwd=tmp, env=ros_env(), capture_output=True,
+                       text=True, timeout=180)
+    assert r.returncode == 0, r.stderr[-3000:]
+    a, b = states(tmp / "launched"), states(tmp / "bb2launch")
+    assert len(a) == len(b) == 51 and max(a) == pytest.approx(2.5)
+    assert a == b  # every state of the run, to the last bit
+
+
+def test_ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished(ws):
+    env, install, tmp = ws
+    p = launch(ws, 215, "bb2_graph.launch.py", "mission:=canyon", f"bag:={tmp / 'interrupted'}")
+    t0 = time.monotonic()
+    seen = []
+    for line in p.stdout:  # running: the path follower is ready and the simulator steps
+        seen.append(line)
+        if "path following ready" in line:
+            break
+        assert time.monotonic() - t0 < 120, "".join(seen[-50:])
+    time.sleep(3.0)
+    os.killpg(p.pid, signal.SIGINT)
+    out = "".join(seen) + finish(p, 60)
+    assert p.returncode == 0, out[-3000:]
+    assert "process has died" not in out, out[-3000:]
+    assert out.count("process has finished cleanly") == 6, out[-3000:]
+    assert (tmp / "interrupted" / "metadata.yaml").is_file()
+    assert max(states(tmp / "interrupted")) > 0.5
+
+
+def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):
+    env, install, tmp = ws
+    solo = tmp / "solo"
+    p = launch(ws, 216, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", f"bag:={solo}")
+    assert finish(p, 180) and p.returncode == 0
+    p = launch(ws, 216, "fleet.launch.py", "boats:=boat1,boat2",
+               f"missions:={tmp / 'short.yaml'},{tmp / 'short_straight.yaml'}", f"bag_dir:={tmp / 'fleet'}")
+    out = finish(p, 240)
+    assert p.returncode == 0 and "2 of 2 boats done" in out, out[-3000:]
+    assert "matches no topic" not in out, out[-3000:]  # every remap names a topic of its node
+    (fleet,) = (tmp / "fleet").iterdir()
+    boat1, boat2 = states(fleet / "boat1"), states(fleet / "boat2")
+    assert boat1 == states(solo)  # the same mission as alone, to the last bit: no crosstalk, deterministic
+    assert len(boat2) == 51 and boat2[0.0][1:4] != boat1[0.0][1:4]  # its own mission (another start), flown
