@@ -113,6 +113,10 @@ def _sim_rate(ctx_node, seconds: float) -> float:
 
     ex = SingleThreadedExecutor(context=ctx_node.context)
     ex.add_node(ctx_node)
+    t_match = time.monotonic() + 30.0  # a new reader needs discovery first (slow on a loaded machine)
+    while not got and time.monotonic() < t_match:
+        ex.spin_once(timeout_sec=0.05)
+    got.clear()
     t_end = time.monotonic() + seconds
     while time.monotonic() < t_end:
         ex.spin_once(timeout_sec=0.05)

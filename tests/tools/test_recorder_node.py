@@ -38,6 +38,10 @@ def test_recorder_parameters_and_parameter_services(tmp_path):
         while not bag.is_dir():
             assert proc.poll() is None and time.monotonic() - t0 < 60, proc.stderr.read() if proc.poll() else ""
             time.sleep(0.1)
+        t0 = time.monotonic()  # discovery first (slow on a loaded machine): the node is listed
+        while "/recorder" not in subprocess.run(["ros2", "node", "list", "--spin-time", "3"], env=env,
+                                                capture_output=True, text=True, timeout=60).stdout.split():
+            assert time.monotonic() - t0 < 60, "the recorder node was never discovered"
         t0 = time.monotonic()
         r = subprocess.run(["ros2", "param", "list", "/recorder"], env=env, capture_output=True, text=True,
                            timeout=60)
