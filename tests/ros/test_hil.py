@@ -132,8 +132,11 @@ def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
     # every failsafe step came before the takeover (start-up discovery, longer on a loaded machine), none after:
     # the status that first said "no failsafe" was sent at or after the takeover, so its step bounds them
     assert last["state"] == "finished" and int(last["failsafe_steps"]) <= int(st[first_ok]["step"])
+    # nothing malformed ever; a command answered later than max_command_age_s (stale) can happen only when the
+    # machine is loaded, and is rejected as it should be: a few at most
     assert all(int(last[k]) == 0 for k in ("rejected_nonfinite", "rejected_names", "rejected_frame",
-                                           "rejected_stale", "rejected_future", "clamped"))
+                                           "rejected_future", "clamped")), last
+    assert int(last["rejected_stale"]) <= 20, last
     # the example's own monitor agrees
     s = json.loads(summary.read_text())
     assert s["state_finite"] and not s["failsafe_after_release"] and s["e_vertical_max_m"] < MAX_PATH_ERROR_M
