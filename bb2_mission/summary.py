@@ -100,6 +100,8 @@ class MissionSummary:
 
 
 def rms_max(e: np.ndarray) -> tuple[float, float]:
+    """RMS and max |e| over the finite samples (NaN, NaN when there are none)."""
+    e = np.asarray(e, float)
     e = e[np.isfinite(e)]
     if e.size == 0:
         return math.nan, math.nan

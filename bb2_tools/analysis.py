@@ -37,6 +37,8 @@ from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
+from bb2_mission.summary import rms_max
+
 from bb2_tools.bag_run import T_PATH, T_PATH_ERROR, AnalysisError, BagRun, Series
 
 if TYPE_CHECKING:
@@ -438,18 +440,9 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
 
 # ------------------------------------------------------------------------------------------ the parts
 def _error_stats(e_vertical: np.ndarray, e_horizontal: np.ndarray) -> PathErrorStats:
-    rv, mv = _rms_max(e_vertical)
-    rh, mh = _rms_max(e_horizontal)
+    rv, mv = rms_max(e_vertical)
+    rh, mh = rms_max(e_horizontal)
     return PathErrorStats(rms_vertical_m=rv, max_vertical_m=mv, rms_horizontal_m=rh, max_horizontal_m=mh)
-
-
-def _rms_max(e: np.ndarray) -> tuple[float, float]:
-    """RMS and max |e| over the finite samples (as the mission runner's summary)."""
-    e = np.asarray(e, float)
-    e = e[np.isfinite(e)]
-    if e.size == 0:
-        return math.nan, math.nan
-    return float(np.sqrt(np.mean(e ** 2))), float(np.max(np.abs(e)))
 
 
 def _closest_errors_samples(samples: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
