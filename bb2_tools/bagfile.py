@@ -27,6 +27,7 @@ chunk; :class:`BagReader` reads such a truncated file up to its last complete ch
 from __future__ import annotations
 
 import copy
+import functools
 import hashlib
 import json
 import os
@@ -43,8 +44,8 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 __all__ = ["BagError", "BagWriter", "BagReader", "RawMessage", "TopicInfo", "message_definition",
-           "type_hash", "qos_entry", "qos_yaml", "read_metadata", "recover", "METADATA_VERSION",
-           "ROS_DISTRO"]
+           "type_hash", "qos_entry", "qos_yaml", "read_metadata", "recover", "Gap", "SequenceGaps", "bag_gaps",
+           "GAPS_KEY", "SEQUENCE_KEY", "METADATA_VERSION", "ROS_DISTRO"]
 
 METADATA_VERSION = 9
 ROS_DISTRO = "jazzy"
@@ -229,6 +230,9 @@ class TopicInfo:
     type_hash: str = ""
     message_count: int = 0
     serialization_format: str = "cdr"
+    #: the MCAP sequence numbers of its messages are DDS publication sequence numbers (channel metadata
+    #: ``bb2_sequence``): gaps in them are lost messages (:func:`bag_gaps`)
+    dds_sequence: bool = False
 
 
 class _UnbufferedSink:
@@ -333,8 +337,10 @@ class BagWriter:
         self.close()
 
     def add_topic(self, name: str, type_name: str, *, offered_qos: list[dict[str, Any]] | None = None,
-                  type_description_hash: str | None = None, definition: str | None = None) -> int:
-        """Register a topic (idempotent for the same type); returns its MCAP channel id."""
+                  type_description_hash: str | None = None, definition: str | None = None,
+                  dds_sequence: bool = False) -> int:
+        """Register a topic (idempotent for the same type); returns its MCAP channel id.  ``dds_sequence``: the
+        messages will be written with their DDS publication sequence numbers (said in the channel metadata)."""
         self._check_open()
         if name in self.topics:
             if self.topics[name].type != type_name:
@@ -346,15 +352,22 @@ class BagWriter:
             self._schema_ids[type_name] = self._writer.register_schema(
                 name=type_name, encoding="ros2msg", data=text.encode("utf-8"))
         h = type_hash(type_name) if type_description_hash is None else type_description_hash
-        info = TopicInfo(name, type_name, list(offered_qos or []), h)
+        info = TopicInfo(name, type_name, list(offered_qos or []), h, dds_sequence=bool(dds_sequence))
+        meta = {"offered_qos_profiles": qos_yaml(info.offered_qos), "topic_type_hash": h}
+        if dds_sequence:
+            meta[SEQUENCE_KEY] = SEQUENCE_DDS
         self._channel_ids[name] = self._writer.register_channel(
-            topic=name, message_encoding="cdr", schema_id=self._schema_ids[type_name],
-            metadata={"offered_qos_profiles": qos_yaml(info.offered_qos), "topic_type_hash": h})
+            topic=name, message_encoding="cdr", schema_id=self._schema_ids[type_name], metadata=meta)
         self.topics[name] = info
         return self._channel_ids[name]
 
-    def write(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
-        """Append one serialized (CDR) message; ``log_time_ns`` is the receive time (rosbag2)."""
+    def write(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None,
+              sequence: int | None = None) -> None:
+        """Append one serialized (CDR) message; ``log_time_ns`` is the receive time (rosbag2).
+
+        ``sequence``: the MCAP message sequence number, the DDS publication sequence number of the sample
+        when the recorder knows it (modulo 2**32; what :func:`bag_gaps` reads gaps from), else the message's
+        index on its channel."""
         self._check_open()
         if topic not in self._channel_ids:
             raise BagError(f"topic {topic!r} was not added to the bag (add_topic first)")
@@ -362,7 +375,8 @@ class BagWriter:
             raise BagError(f"log time must be >= 0 ns, got {log_time_ns}")
         info = self.topics[topic]
         self._writer.add_message(channel_id=self._channel_ids[topic], log_time=int(log_time_ns),
-                                 data=bytes(data), sequence=info.message_count,
+                                 data=bytes(data),
+                                 sequence=info.message_count if sequence is None else int(sequence) & 0xFFFFFFFF,
                                  publish_time=int(log_time_ns if publish_time_ns is None else publish_time_ns))
         info.message_count += 1
         self._message_count += 1
@@ -447,6 +461,7 @@ class RawMessage:
     publish_time_ns: int
     data: bytes
     type: str
+    sequence: int = 0  #: the MCAP sequence number (our recorder: the DDS publication sequence number)
 
 
 class BagReader:
@@ -551,7 +566,7 @@ class BagReader:
             qos = yaml.safe_load(qos_text) if qos_text else []
             out.append(TopicInfo(c.topic, self.topics[c.topic], list(qos or []),
                                  c.metadata.get("topic_type_hash", ""), self._counts.get(cid, 0),
-                                 c.message_encoding))
+                                 c.message_encoding, c.metadata.get(SEQUENCE_KEY) == SEQUENCE_DDS))
         return out
 
     # -- messages
@@ -564,17 +579,19 @@ class BagReader:
             raise BagError(f"topics not in the bag: {sorted(unknown)} (bag has {sorted(self.topics)})")
         return sel
 
-    def raw_messages(self, topics: Iterable[str] | str | None = None) -> Iterator[RawMessage]:
-        """Serialized messages (log-time order for a complete bag, file order for a truncated one)."""
+    def raw_messages(self, topics: Iterable[str] | str | None = None, *,
+                     file_order: bool = False) -> Iterator[RawMessage]:
+        """Serialized messages (log-time order for a complete bag unless ``file_order``, the order they were
+        written in; file order for a truncated one)."""
         sel = self._select(topics)
         if self._summary is not None:
             from mcap.reader import make_reader
 
             with open(self.mcap_path, "rb") as f:
                 for schema, channel, msg in make_reader(f).iter_messages(
-                        topics=None if sel is None else sorted(sel), log_time_order=True):
+                        topics=None if sel is None else sorted(sel), log_time_order=not file_order):
                     yield RawMessage(channel.topic, msg.log_time, msg.publish_time, msg.data,
-                                     schema.name if schema else "")
+                                     schema.name if schema else "", msg.sequence)
             return
         channels: dict[int, Channel] = {}
         schemas: dict[int, Schema] = {}
@@ -588,7 +605,8 @@ class BagReader:
                 if ch is None or (sel is not None and ch.topic not in sel):
                     continue
                 sc = schemas.get(ch.schema_id)
-                yield RawMessage(ch.topic, rec.log_time, rec.publish_time, rec.data, sc.name if sc else "")
+                yield RawMessage(ch.topic, rec.log_time, rec.publish_time, rec.data, sc.name if sc else "",
+                                 rec.sequence)
 
     def messages(self, topics: Iterable[str] | str | None = None) -> Iterator[tuple[str, int, Any]]:
         """``(topic, log_time_ns, decoded message)`` decoded with mcap_ros2 (dynamic classes)."""
@@ -641,9 +659,11 @@ def recover(path: str | os.PathLike, out_dir: str | os.PathLike | None = None, *
         definitions = {s.name: s.data.decode("utf-8") for s in src._schemas.values()}
         for t in infos.values():
             w.add_topic(t.name, t.type, offered_qos=t.offered_qos, type_description_hash=t.type_hash,
-                        definition=definitions.get(t.type))
-        for m in src.raw_messages():
-            w.write(m.topic, m.data, m.log_time_ns, m.publish_time_ns)
+                        definition=definitions.get(t.type), dds_sequence=t.dds_sequence)
+        for m in src.raw_messages(file_order=True):
+            w.write(m.topic, m.data, m.log_time_ns, m.publish_time_ns, sequence=m.sequence)
+        if GAPS_KEY not in custom and any(t.dds_sequence for t in infos.values()):  # the recorder's were lost
+            w.custom_data[GAPS_KEY] = SequenceGaps.from_reader(src).to_json()
     result_dir = target
     if in_place:
         os.replace(w.mcap_path, src.mcap_path)
@@ -653,3 +673,161 @@ def recover(path: str | os.PathLike, out_dir: str | os.PathLike | None = None, *
         result_dir = src_dir
     return RecoveryReport(result_dir, src.truncated, w.message_count,
                           {n: t.message_count for n, t in w.topics.items()}, src.problem)
+
+
+# ----------------------------------------------------------------------------------------- gaps
+GAPS_KEY = "bb2_gaps"
+"""``custom_data`` key of the gaps a recording has (JSON list of :class:`Gap` dicts; "[]": none)."""
+SEQUENCE_KEY = "bb2_sequence"
+"""Channel metadata key saying what the channel's MCAP message sequence numbers are (:data:`SEQUENCE_DDS`)."""
+SEQUENCE_DDS = "dds_publication_sequence_number"
+
+
+@dataclass(frozen=True)
+class Gap:
+    """Messages of a topic that the publisher sent and the bag does not hold: the publication sequence numbers
+    ``after_sequence`` and ``before_sequence`` were received, the ``missing`` ones between them were not
+    (``after_sequence`` 0: the first ones the publisher sent, before the first one recorded).  Times are the
+    bag's log times (receive times: sim time with ``use_sim_time``; a stalled recorder logs its backlog at the time
+    it resumes) and publish times (the DDS source timestamps, wall clock) of the two received messages, s (None
+    before a head gap).  ``source``: the publisher, where a topic has several (the status name of a
+    ``/bb2/status``), else ''."""
+
+    topic: str
+    missing: int
+    after_sequence: int
+    before_sequence: int
+    after_log_s: float | None
+    before_log_s: float
+    source: str = ""
+    after_publish_s: float | None = None
+    before_publish_s: float | None = None
+
+    @property
+    def head(self) -> bool:
+        """Lost before the first message recorded (the publisher started before the recorder matched it)."""
+        return self.after_sequence == 0
+
+    @property
+    def duration_s(self) -> float:
+        """Wall seconds between the publication of the messages either side (0 for a head gap)."""
+        if self.after_publish_s is None or self.before_publish_s is None:
+            return 0.0
+        return self.before_publish_s - self.after_publish_s
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"topic": self.topic, "missing": self.missing, "after_sequence": self.after_sequence,
+                "before_sequence": self.before_sequence, "after_log_s": self.after_log_s,
+                "before_log_s": self.before_log_s, "source": self.source, "after_publish_s": self.after_publish_s,
+                "before_publish_s": self.before_publish_s}
+
+    def describe(self) -> str:
+        who = f" (from {self.source})" if self.source else ""
+        if self.head:
+            return (f"{self.topic}{who}: the first {self.missing} message(s) published were not recorded (the first "
+                    f"recorded, publication sequence number {self.before_sequence}, at log time "
+                    f"{self.before_log_s:.3f} s)")
+        return (f"{self.topic}{who}: {self.missing} message(s) missing between log times {self.after_log_s:.3f} s "
+                f"and {self.before_log_s:.3f} s (published over {self.duration_s:.3f} s of wall time; publication "
+                f"sequence numbers {self.after_sequence + 1}..{self.before_sequence - 1})")
+
+
+MULTI_PUBLISHER_TYPES = ("diagnostic_msgs/msg/DiagnosticArray",)
+"""Types whose topics have a publisher per node (``/bb2/status``, ``/diagnostics``): their sequence numbers are
+followed per publisher, told apart by the status names in the message (:func:`stream_source`)."""
+
+
+@functools.cache
+def _diagnostics_decoder():
+    from mcap_ros2._dynamic import generate_dynamic
+
+    name = "diagnostic_msgs/msg/DiagnosticArray"
+    return generate_dynamic(name, message_definition(name))[name]
+
+
+def stream_source(type_name: str, data: bytes) -> str:
+    """Which publisher a message of a :data:`MULTI_PUBLISHER_TYPES` topic comes from (its status names), else ''
+    (the message info does not carry the publisher's id)."""
+    if type_name not in MULTI_PUBLISHER_TYPES:
+        return ""
+    try:
+        msg = _diagnostics_decoder()(data)
+        return ",".join(sorted({str(st.name) for st in msg.status}))
+    except Exception:  # undecodable: followed as one more publisher
+        return "?"
+
+
+class SequenceGaps:
+    """Gaps in the publication sequence numbers of each topic, fed in the order messages were received.
+
+    DDS numbers every sample of a writer 1, 2, 3, ...; a reader that receives ``k`` after ``j < k - 1`` lost the
+    ones between (a best-effort sample dropped, a reliable one pushed out of a keep-last history, a reader
+    stopped).  A topic may have several writers (a restarted node, two publishers) and the message info does not
+    say which: each received number extends the stream it follows (the one whose last number is just below
+    it); a number below every stream's last starts a new stream (a new writer: not a loss).  Numbers 0 (the
+    middleware does not number samples) are ignored.  Messages lost after the last one received cannot be
+    seen.  Sequence numbers are compared modulo 2**32 (what an MCAP message holds)."""
+
+    def __init__(self) -> None:
+        # (topic, source) -> [[last sequence, its log time ns, its publish time ns], ...]
+        self._streams: dict[tuple[str, str], list[list[int]]] = {}
+        self.gaps: list[Gap] = []
+
+    def observe(self, topic: str, sequence: int, log_time_ns: int, source: str = "",
+                publish_time_ns: int | None = None) -> Gap | None:
+        """One received message (``source``: :func:`stream_source`); the gap it closes, if any.  The first
+        message of a topic with a number above 1 closes a head gap (the first ones were not received)."""
+        seq = int(sequence) & 0xFFFFFFFF
+        if seq == 0:
+            return None
+        streams = self._streams.setdefault((topic, source), [])
+        below = [s for s in streams if s[0] < seq]
+        gap = None
+        pub = None if publish_time_ns is None else int(publish_time_ns)
+        if not below:
+            if not streams and seq > 1:
+                gap = Gap(topic, seq - 1, 0, seq, None, int(log_time_ns) * 1e-9, source, None,
+                          None if pub is None else pub * 1e-9)
+                self.gaps.append(gap)
+            streams.append([seq, int(log_time_ns), pub])
+            return gap
+        s = max(below, key=lambda s: s[0])
+        if seq > s[0] + 1:
+            gap = Gap(topic, seq - s[0] - 1, s[0], seq, s[1] * 1e-9, int(log_time_ns) * 1e-9, source,
+                      None if s[2] is None else s[2] * 1e-9, None if pub is None else pub * 1e-9)
+            self.gaps.append(gap)
+        s[0], s[1], s[2] = seq, int(log_time_ns), pub
+        return gap
+
+    @property
+    def missing(self) -> int:
+        return sum(g.missing for g in self.gaps)
+
+    def to_json(self) -> str:
+        return json.dumps([g.as_dict() for g in self.gaps])
+
+    @classmethod
+    def from_reader(cls, reader: "BagReader") -> "SequenceGaps":
+        """The gaps of a bag whose sequence numbers are publication sequence numbers, from its messages in the
+        order they were written."""
+        g = cls()
+        dds = [t.name for t in reader.topic_infos() if t.dds_sequence]
+        if dds:
+            for m in reader.raw_messages(dds, file_order=True):
+                g.observe(m.topic, m.sequence, m.log_time_ns, stream_source(m.type, m.data), m.publish_time_ns)
+        return g
+
+
+def bag_gaps(reader: "BagReader") -> list[Gap] | None:
+    """The gaps of a bag: those its recorder wrote into the metadata (``custom_data`` :data:`GAPS_KEY`), else
+    those its sequence numbers show when they are publication sequence numbers; None when the bag cannot tell
+    (another recorder's bag)."""
+    custom = dict((reader.metadata or {}).get("custom_data") or {})
+    if GAPS_KEY in custom:
+        try:
+            return [Gap(**d) for d in json.loads(custom[GAPS_KEY])]
+        except (ValueError, TypeError) as exc:
+            raise BagError(f"{reader.mcap_path}: custom_data {GAPS_KEY} is not a gap list: {exc}") from None
+    if any(t.dds_sequence for t in reader.topic_infos()):
+        return SequenceGaps.from_reader(reader).gaps
+    return None
