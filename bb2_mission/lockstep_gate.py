@@ -21,6 +21,12 @@ Stepping (:class:`LockstepGate`), per step ``n`` at sim time ``t_n``:
   plane command is still fresh, the propeller held at its last valid command (the stack's nominal command if
   none ever came).  The failsafe releases at the first step with valid commands again.
 
+* **recorder back-pressure** (lockstep, :class:`RecorderAck`): with a window of ``w`` steps, the step from
+  ``t_n`` waits until a reliable reader that must miss nothing (the recorder) has acknowledged the state of
+  ``t_(n-w)``, so a stalled recorder slows the graph instead of losing messages; the controllers' answer is held
+  meanwhile (no re-send, no lockstep timeout).  A reader silent for ``timeout_s`` is given up on (said once;
+  the graph steps on, the recording will have a gap) until it acknowledges again.
+
 All times are passed in (``wall`` = monotonic seconds, stamps in integer nanoseconds), so every rule is
 unit-tested without a clock or DDS.
 """
@@ -34,7 +40,7 @@ from typing import Sequence
 import numpy as np
 
 __all__ = ["TimeMode", "Counter", "CommandLimits", "clamp_planes_deg", "clamp_rps", "Verdict", "CommandValidator",
-           "StepDecision", "WatchdogAction", "GateTimings", "LockstepGate"]
+           "StepDecision", "WatchdogAction", "GateTimings", "LockstepGate", "RecorderAck"]
 
 
 class TimeMode(StrEnum):
@@ -344,3 +350,62 @@ class LockstepGate:
     def stepped(self) -> None:
         """The step went ahead: the next step's answers start empty."""
         self._ans_planes = self._ans_rps = None
+
+
+@dataclass
+class RecorderAck:
+    """Lockstep back-pressure from one reader that must miss nothing (the recorder's ``/bb2/recorder/ack``).
+
+    The step from ``t_n`` may go when the reader has acknowledged a state stamped at or after
+    ``t_n - window_steps * step_ns``; before its first acknowledgement it counts as having acknowledged the
+    step before ``t0_ns`` (the first ``window_steps`` steps go at once).  ``window_steps`` 0: off."""
+
+    window_steps: int
+    step_ns: int
+    t0_ns: int = 0
+    timeout_s: float = 30.0        #: wall s without an acknowledgement that lets a step go, before giving up
+    acked_ns: int | None = None    #: newest acknowledged stamp
+    waiting_since: float | None = None  #: wall s the step now held started waiting
+    given_up: bool = False         #: the reader was silent for timeout_s: steps go without it until it acks
+    waits: int = 0                 #: steps that had to wait for the reader
+    timeouts: int = 0              #: times it was given up on
+
+    def __post_init__(self) -> None:
+        if self.window_steps < 0 or self.step_ns <= 0 or not self.timeout_s > 0:
+            raise ValueError(f"RecorderAck: window_steps >= 0, step_ns > 0 and timeout_s > 0 needed, got "
+                             f"{self.window_steps}, {self.step_ns}, {self.timeout_s}")
+
+    @property
+    def enabled(self) -> bool:
+        return self.window_steps > 0
+
+    def on_ack(self, stamp_ns: int) -> None:
+        """An acknowledgement of the state stamped ``stamp_ns`` (older ones than the newest are ignored)."""
+        if self.acked_ns is None or stamp_ns > self.acked_ns:
+            self.acked_ns = int(stamp_ns)
+        self.given_up = False
+
+    def lag_steps(self, now_ns: int) -> int:
+        """Steps from the newest acknowledged state to the state at ``now_ns``."""
+        acked = self.t0_ns - self.step_ns if self.acked_ns is None else self.acked_ns
+        return (int(now_ns) - acked) // self.step_ns
+
+    def may_step(self, now_ns: int, wall: float) -> bool:
+        """May the step from the state at ``now_ns`` go now?  (A step that may not is counted once, and its
+        wait starts at ``wall``.)"""
+        if not self.enabled or self.given_up or self.lag_steps(now_ns) <= self.window_steps:
+            self.waiting_since = None
+            return True
+        if self.waiting_since is None:
+            self.waiting_since = wall
+            self.waits += 1
+        return False
+
+    def expired(self, wall: float) -> bool:
+        """The held step has waited ``timeout_s``: give the reader up (once; steps go without it)."""
+        if self.waiting_since is None or wall - self.waiting_since < self.timeout_s:
+            return False
+        self.given_up = True
+        self.timeouts += 1
+        self.waiting_since = None
+        return True

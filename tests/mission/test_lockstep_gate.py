@@ -192,3 +192,38 @@ def test_realtime_failsafe_engages_on_silence_and_releases_on_fresh_commands():
     assert d.failsafe and "no valid propeller command" in d.reason and "planes held" in d.reason
     np.testing.assert_allclose(d.planes_deg, [3] * 5, atol=1e-12)
     assert g.counters["failsafe_steps"] == 3
+
+
+# ------------------------------------------------------------------------------------------ recorder back-pressure
+def test_recorder_ack_lets_steps_go_within_the_window_and_holds_them_beyond():
+    from bb2_mission.lockstep_gate import RecorderAck
+
+    h = NS // 20
+    a = RecorderAck(3, step_ns=h, t0_ns=0, timeout_s=10.0)
+    assert all(a.may_step(n * h, 0.0) for n in range(3))  # nothing acknowledged yet: the first 3 steps go
+    assert not a.may_step(3 * h, 1.0) and a.waits == 1 and a.waiting_since == 1.0
+    assert not a.may_step(3 * h, 2.0) and a.waits == 1   # the same held step counts once
+    a.on_ack(0)                                          # the recorder holds t_0: t_3 is 3 steps ahead
+    assert a.may_step(3 * h, 2.5) and a.waiting_since is None
+    assert not a.may_step(4 * h, 2.6) and a.waits == 2
+    a.on_ack(5 * h)
+    a.on_ack(2 * h)                                      # an older acknowledgement changes nothing
+    assert a.acked_ns == 5 * h and a.lag_steps(8 * h) == 3 and a.may_step(8 * h, 3.0)
+    assert not RecorderAck(0, step_ns=h).enabled and RecorderAck(0, step_ns=h).may_step(10**12, 0.0)
+    with pytest.raises(ValueError):
+        RecorderAck(-1, step_ns=h)
+
+
+def test_recorder_ack_gives_a_silent_recorder_up_after_its_timeout_until_it_acknowledges_again():
+    from bb2_mission.lockstep_gate import RecorderAck
+
+    h = NS // 20
+    a = RecorderAck(2, step_ns=h, t0_ns=0, timeout_s=5.0)
+    a.on_ack(0)
+    assert not a.may_step(3 * h, 10.0)
+    assert not a.expired(14.9) and not a.given_up
+    assert a.expired(15.0) and a.given_up and a.timeouts == 1
+    assert not a.expired(30.0) and a.timeouts == 1      # said once
+    assert a.may_step(50 * h, 31.0)                      # steps go without it
+    a.on_ack(49 * h)                                     # it is back: the window holds again
+    assert not a.given_up and a.may_step(51 * h, 32.0) and not a.may_step(52 * h, 32.1)
