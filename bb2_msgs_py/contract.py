@@ -96,20 +96,24 @@ class QosDescription:
 
 
 QOS: dict[str, QosDescription] = {
-    # vehicle state and sensors: written reliable (keep last 5) so that a subscriber with the default reliable
+    # vehicle state and sensors: written reliable (keep last 20) so that a subscriber with the default reliable
     # QoS (RViz, `ros2 topic echo --qos-reliability reliable`) and a best-effort one (qos_profile_sensor_data)
-    # both receive them; our own readers (controllers on odometry, the recorder) read best effort, as sensor
-    # data is read, and so also match a best-effort publisher (an external simulator, a HIL bench); measured
-    # cost in lockstep: README "QoS choices"
-    "sensor": QosDescription("reliable", "volatile", "keep_last", 5, reader_reliability="best_effort"),
+    # both receive them; our controllers read best effort, as sensor data is read, and so also match a
+    # best-effort publisher (an external simulator, a HIL bench); the recorder reads reliable (what the writers
+    # offer, as rosbag2 does), so that a recorder stalled for up to its lockstep window (10 steps, the
+    # simulator's recorder_ack_window) loses nothing: the writer keeps 20; measured cost in lockstep: README
+    # "QoS choices"
+    "sensor": QosDescription("reliable", "volatile", "keep_last", 20, reader_reliability="best_effort"),
     # commands, guidance outputs and the lockstep state: every sample matters; the writer keeps 100
     # samples so a reader that is not part of the lockstep handshake (recorder, test, tool) may lag 100
     # steps without losing one (reliable keep-last drops unacknowledged samples beyond the depth)
     "command": QosDescription("reliable", "volatile", "keep_last", 100),
     # paths are latched so a late subscriber (RViz, recorder) gets the current path
     "latched": QosDescription("reliable", "transient_local", "keep_last", 1),
-    # rclcpp::ClockQoS, as rosbag2's player publishes /clock: best effort, keep last 1
-    "clock": QosDescription("best_effort", "volatile", "keep_last", 1),
+    # /clock: read as rclcpp::ClockQoS (best effort, what every node's time source asks for) and written
+    # reliable keep last 20, which serves those readers and lets the recorder read it reliable (a stalled
+    # recorder loses no /clock sample within its lockstep window)
+    "clock": QosDescription("reliable", "volatile", "keep_last", 20, reader_reliability="best_effort"),
     # status / diagnostics
     "status": QosDescription("reliable", "volatile", "keep_last", 10),
     # the sensor models' measurements (/bb2/sensors/*): several samples of a sensor may go out in one ROM step
@@ -230,6 +234,11 @@ CONTRACT: tuple[TopicSpec, ...] = (
               "JSON (format bb2_sensor_mountings/1): frame, parent base_link, translation m, quaternion (x, y, z, w), "
               "rate_hz per sensor; the suite and its seed", SIM, (RECORDER, EXTERNAL),
               "the sensors' mountings (the /tf_static of the suite: tf2_msgs is not in the wheels) and rates"),
+    TopicSpec("/bb2/recorder/ack", "std_msgs/msg/Header", "command", "-",
+              "stamp: sim time of the newest /bb2/state_native the recorder holds", RECORDER, (SIM, RECORDER),
+              "the recorder's acknowledgement, after each batch it wrote: in lockstep with recorder_ack_window > 0 "
+              "the simulator steps at most that many steps ahead of it (a stalled recorder slows the graph, "
+              "loses nothing)"),
     TopicSpec("/tf", "tf2_msgs/msg/TFMessage", "command", "odom -> base_link", "m, quaternion",
               RECORDER, (EXTERNAL,), "derived from /bb2/odom by the recorder (bags only)",
               bag_only=True),

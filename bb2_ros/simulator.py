@@ -32,6 +32,12 @@ other one is read-only (fixed at start-up; the set is refused):
 ``wait_for_readers``   publish the first state only once every topic this node publishes has had a reader (a
                        recorder started alongside) for ``startup_settle_s`` (the readers' side matches the
                        writers a moment later: it then misses nothing), at most ``startup_timeout_s``.
+``recorder_ack_window`` lockstep: step at most this many steps ahead of the newest ``/bb2/recorder/ack`` (the
+                       recorder's acknowledgement of the states it holds), so a stalled recorder slows the graph
+                       instead of losing messages (the controllers' answer is held meanwhile: no re-send, no
+                       lockstep timeout); 0 = do not wait (``bb2-launch`` sets 10 when it records in lockstep).
+``recorder_ack_timeout_s`` lockstep: a recorder that acknowledges nothing for this many wall s is given up on
+                       (a warning; the graph steps on and the bag will have a gap) until it acknowledges again.
 ``command_timeout_s``  real time: a command older than this (wall time since it arrived), or none at all,
                        engages the failsafe: planes commanded to neutral (0 rad), propeller held at the last
                        valid command (the mission's nominal speed command if none ever arrived).
@@ -95,8 +101,8 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from bb2_mission.components import build_model, build_sensor_suite, build_simulator, nominal_rps, sensor_spec
-from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, StepDecision,
-                                       TimeMode, Verdict, WatchdogAction)
+from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, RecorderAck,
+                                       StepDecision, TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
 from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS, mountings_json, sample_messages
 from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT, message_class, qos_profile, topic
@@ -111,7 +117,8 @@ TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/dept
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics")
 # a late reader still gets these: no reason to wait for one before the first step
 LATCHED_OUT = ("/bb2/sea", "/bb2/sensors/mountings")
-TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress")  # progress: end_at_progress
+TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress",  # progress: end_at_progress
+             "/bb2/recorder/ack")  # recorder_ack_window
 TWO_PI = 2.0 * math.pi
 
 
@@ -182,6 +189,13 @@ class Simulator(Node):
         self.wait_for_readers = bool(P("wait_for_readers", False,
                                        "publish the first state only once every topic published here has a "
                                        "reader (a recorder), at most startup_timeout_s"))
+        ack_window = int(P("recorder_ack_window", 0, "lockstep: step at most this many steps ahead of the newest "
+                             "/bb2/recorder/ack (a stalled recorder slows the graph, loses nothing); 0 = do not wait"))
+        if ack_window < 0:
+            raise NodeConfigError(f"recorder_ack_window must be >= 0, got {ack_window}")
+        ack_timeout = L("recorder_ack_timeout_s", 30.0, "lockstep: wall s without a recorder acknowledgement before "
+                        "stepping on without it (the bag will have a gap)",
+                        lambda v: setattr(self.ack, "timeout_s", v), positive("recorder_ack_timeout_s"))
         self.status_period_s = require_positive("status_period_s", P(
             "status_period_s", 1.0, "wall period of /bb2/status"))
         throttle_s = L("warn_throttle_s", 2.0, "at most one warning of a kind per this many wall seconds",
@@ -211,6 +225,12 @@ class Simulator(Node):
                         command_timeout_s=self.command_timeout_s),
             nominal_rps=build_piece(self.mission, nominal_rps))
         self._failsafe_shown = False  # the failsafe state last logged / published
+        if ack_window and self.time_mode is not TimeMode.LOCKSTEP:
+            node.get_logger().warning("recorder_ack_window applies in lockstep only: ignored in real time")
+            ack_window = 0
+        self.ack = RecorderAck(ack_window, step_ns=cv.seconds_to_ns(self.h), t0_ns=self._t_ns(),
+                               timeout_s=ack_timeout)
+        self._held: StepDecision | None = None  # the controllers' answer, held while the recorder lags
 
         # publishers / subscriptions (contract QoS)
         def pub(name):
@@ -223,6 +243,9 @@ class Simulator(Node):
                                                    self._locked(self._on_planes), qos_profile("/bb2/planes/cmd"))
         self.sub_prop = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/propeller/cmd",
                                                  self._locked(self._on_propeller), qos_profile("/bb2/propeller/cmd"))
+        if self.ack.enabled:
+            self.sub_ack = node.create_subscription(message_class("std_msgs/msg/Header"), "/bb2/recorder/ack",
+                                                    self._locked(self._on_ack), qos_profile("/bb2/recorder/ack"))
         if self.end_at_progress:
             self.sub_progress = node.create_subscription(
                 message_class("std_msgs/msg/Float64"), "/bb2/mission/progress",
@@ -326,8 +349,25 @@ class Simulator(Node):
             if decision is not None:
                 self._step(decision)
 
+    def _on_ack(self, msg) -> None:
+        """The recorder holds the states up to ``msg.stamp``: a step held for it may go."""
+        self.ack.on_ack(cv.stamp_to_ns(msg.stamp))
+        if self._held is not None and self._stepping():
+            held, self._held = self._held, None
+            self._step(held)
+
     def _step(self, d: StepDecision) -> None:
-        """Step with the gate's decision; a failsafe engaged or released is logged and published once."""
+        """Step with the gate's decision (held instead while the recorder lags more than its window); a failsafe
+        engaged or released is logged and published once."""
+        if self.time_mode is TimeMode.LOCKSTEP and not self.ack.may_step(self._t_ns(), time.monotonic()):
+            if self._held is None:
+                held = "none yet" if self.ack.acked_ns is None else f"up to t = {self.ack.acked_ns * 1e-9:.3f} s"
+                self.warn.warn("recorder_wait", f"step from t = {self.t:.3f} s waits for the recorder (it holds the "
+                               f"states {held}, {self.ack.lag_steps(self._t_ns())} steps behind; "
+                               f"recorder_ack_window {self.ack.window_steps})")
+            self._held = d
+            return
+        self._held = None
         if d.failsafe != self._failsafe_shown:
             self._failsafe_shown = d.failsafe
             if not d.failsafe:
@@ -364,6 +404,14 @@ class Simulator(Node):
 
     def _watchdog(self) -> None:
         if not self._stepping() or not self.started:
+            return
+        if self._held is not None:  # answered; waiting for the recorder, not the controllers
+            if self.ack.expired(time.monotonic()):
+                self.get_logger().warning(
+                    f"the recorder acknowledged nothing for {self.ack.timeout_s:g} s: stepping on without it from "
+                    f"t = {self.t:.3f} s (the bag will have a gap)")
+                held, self._held = self._held, None
+                self._step(held)
             return
         action, decision = self.gate.watchdog(self.sim.n, time.monotonic())
         if action is WatchdogAction.STEP:
@@ -554,6 +602,12 @@ class Simulator(Node):
             vals["error"] = self.diverged
         vals.update({k: str(v) for k, v in self.gate.counters.items()})
         vals["overruns"] = str(self.overruns)
+        if self.ack.enabled:
+            vals["recorder_ack"] = ("given up" if self.ack.given_up else "waiting" if self._held is not None
+                                    else "ok")
+            vals["recorder_lag_steps"] = str(self.ack.lag_steps(self._t_ns()))
+            vals["recorder_waits"] = str(self.ack.waits)
+            vals["recorder_ack_timeouts"] = str(self.ack.timeouts)
         return vals
 
     def _publish_status(self) -> None:

@@ -26,7 +26,7 @@ from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from bb2_tools.bagfile import BagError, BagReader
+from bb2_tools.bagfile import BagError, BagReader, Gap, bag_gaps
 
 __all__ = ["AnalysisError", "Series", "StatusEntry", "BagRun", "read_bag", "USED_TOPICS"]
 
@@ -119,6 +119,9 @@ class BagRun:
     progress: Series = field(default_factory=lambda: Series.empty(1))      #: 1
     status: list[StatusEntry] = field(default_factory=list)  #: every status, in bag order
     warnings: list[str] = field(default_factory=list)
+    #: messages lost before they reached the recorder (:func:`bb2_tools.bagfile.bag_gaps`); None: the bag
+    #: cannot tell (no publication sequence numbers: another recorder's bag)
+    gaps: list[Gap] | None = None
 
     stamps_ns: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  #: ns of the states
 
@@ -282,4 +285,50 @@ def read_bag(path: str | Path, label: str | None = None) -> BagRun:
         progress=_series(rows[T_PROGRESS], 1), status=status, warnings=warnings)
     if reader.metadata is None and p.is_dir():
         run.warnings.append("no metadata.yaml beside the .mcap (bag not finished; `bagfile.recover` repairs it)")
+    try:
+        run.gaps = bag_gaps(reader)
+    except BagError as exc:
+        run.warnings.append(f"cannot tell whether the recording has gaps: {exc}")
+    run.warnings.extend(gap_warnings(run.gaps, state_topic=src, used=wanted))
+    if run.gaps is None:
+        run.warnings.extend(state_hole_warnings(run.t, src))
     return run
+
+
+def gap_warnings(gaps: Sequence[Gap] | None, *, state_topic: str, used: Sequence[str]) -> list[str]:
+    """One warning per topic with recording gaps: every gap (where, in log time, and how long; how many
+    messages), and whether the figures are affected (the state topic: they are computed over the ticks that
+    remain; another topic they use: its statistics are over the samples that remain; else not affected)."""
+    by_topic: dict[str, list[Gap]] = {}
+    for g in gaps or ():
+        by_topic.setdefault(g.topic, []).append(g)
+    out = []
+    for topic_name, gs in by_topic.items():
+        if topic_name == state_topic:
+            affect = "the figures are affected: computed over the ticks that remain"
+        elif topic_name in used:
+            affect = f"figures from {topic_name} are affected: computed over the samples that remain"
+        else:
+            affect = "not used by the figures: they are not affected"
+        where = "; ".join(f"the first {g.missing}, before t = {g.before_log_s:.3f} s" if g.head else
+                          f"{g.missing} between t = {g.after_log_s:.3f} s and {g.before_log_s:.3f} s (published "
+                          f"over {g.duration_s:.3f} s of wall time)" for g in gs)
+        out.append(f"recording gap(s) on {topic_name}: {len(gs)} gap(s), {sum(g.missing for g in gs)} message(s) "
+                   f"lost before reaching the recorder ({affect}): {where}")
+    return out
+
+
+def state_hole_warnings(t: np.ndarray, state_topic: str) -> list[str]:
+    """Holes in the state's time grid (steps more than 1.5 times the median apart), for bags that cannot tell
+    their gaps from sequence numbers."""
+    if len(t) < 3:
+        return []
+    dt = np.diff(t)
+    h = float(np.median(dt))
+    holes = np.flatnonzero(dt > 1.5 * h)
+    if not len(holes):
+        return []
+    where = "; ".join(f"t = {t[k]:.3f} .. {t[k + 1]:.3f} s" for k in holes[:20]) + (
+        f"; and {len(holes) - 20} more" if len(holes) > 20 else "")
+    return [f"{state_topic} has {len(holes)} hole(s) in its {h:g} s time grid (the figures are computed over the "
+            f"ticks that remain): {where}"]

@@ -74,7 +74,7 @@ class GraphMonitor:
                                             start_parameter_services=False, enable_rosout=False)
 
         def latest_only(name):
-            q = qos_profile(name)
+            q = qos_profile(name, reader=True)
             q.history, q.depth = HistoryPolicy.KEEP_LAST, 1
             return q
 

@@ -329,8 +329,10 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
         ros += ["-p", f"mission_file:={mission}"]
         if node.name == "simulator":
             ros += ["-p", f"time_mode:={mode}"]
-            if mode == "lockstep" and record:
+            if record:  # the bag misses nothing from the first step on (its readers matched first)
                 ros += ["-p", "wait_for_readers:=true"]
+            if mode == "lockstep" and record:  # nor when the recorder stalls: the graph waits for it
+                ros += ["-p", f"recorder_ack_window:={RECORDER_ACK_WINDOW}"]
         else:
             ros += ["-p", "use_sim_time:=true"]
         specs.append(ProcessSpec(node.name, [*base, *ros], policy, finishes_graph=node.name == "simulator",
@@ -338,6 +340,43 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                                  early=node.name != "simulator" or mode == "lockstep"))
     first = [s for s in specs if s.ready is not None]
     return first + [s for s in specs if s.ready is None]
+
+
+RECORDER_ACK_WINDOW = 10
+"""Steps a lockstep simulator may run ahead of the recorder's acknowledgement (``recorder_ack_window``): a
+stalled recorder stops the graph within half a second of sim time, far inside every writer's history."""
+
+
+def gap_lines(bag: Path) -> list[str]:
+    """What a bag's recording lost, for the summary: its gaps (:func:`bb2_tools.bagfile.bag_gaps`), one line
+    each (at most 10), or that it lost nothing."""
+    from bb2_tools.bagfile import BagError, BagReader, bag_gaps
+
+    try:
+        gaps = bag_gaps(BagReader(bag))
+    except BagError as exc:
+        return [f"cannot check {bag} for gaps: {exc}"]
+    if gaps is None:
+        return [f"{bag}: no publication sequence numbers: gaps cannot be checked"]
+    if not gaps:
+        return ["recording complete: no gaps (every message published while recording is in the bag)"]
+    lines = [f"RECORDING GAPS: {len(gaps)} gap(s), {sum(g.missing for g in gaps)} message(s) lost before "
+             f"reaching the recorder (bag metadata custom_data bb2_gaps; bb2-analyze says what they affect):"]
+    by_topic: dict[str, list] = {}
+    for g in gaps:
+        by_topic.setdefault(g.topic, []).append(g)
+    for topic, gs in sorted(by_topic.items(), key=lambda kv: -sum(g.missing for g in kv[1])):
+        mid = [g for g in gs if not g.head]
+        head = sum(g.missing for g in gs if g.head)
+        text = f"  {topic}: {sum(g.missing for g in gs)} lost"
+        if mid:
+            big = max(mid, key=lambda g: g.missing)
+            text += (f", {len(mid)} gap(s) during the run (largest {big.missing} at log time {big.after_log_s:.3f} s, "
+                     f"published over {big.duration_s:.3f} s of wall time)")
+        if head:
+            text += f"{',' if mid else ''} {head} before its first recorded message"
+        lines.append(text)
+    return lines
 
 
 def recorder_bags(run_dir: Path, exits: Sequence[NodeExit]) -> list[Path]:
@@ -501,6 +540,8 @@ def _main(argv: Sequence[str] | None) -> int:
           f"exit code {result.exit_code}", file=sys.stderr)
     for b in bags:
         print(f"[bb2-launch] bag:   {b}", file=sys.stderr)
+        for line in gap_lines(b):
+            print(f"[bb2-launch]        {line}", file=sys.stderr)
     print(f"[bb2-launch] logs:  {log_dir}", file=sys.stderr)
     if bags:
         print(f"[bb2-launch] plots: bb2-analyze {bags[0]}", file=sys.stderr)

@@ -17,6 +17,15 @@ per wake-up, which cost the recorder more CPU than the bag writing on a 2-core m
 ``--use-sim-time`` the log time is the last ``/clock`` taken before the message (rclpy's time source
 does the same, one callback later).
 
+Nothing lost silently: every message is written with its DDS publication sequence number (the MCAP message
+``sequence``; channel metadata ``bb2_sequence``), and every gap in a topic's numbers (messages the publisher sent
+that never arrived: a best-effort sample dropped, a reliable one pushed out of the writer's history while the
+recorder was stalled) is logged as it is found and written into the bag's ``custom_data`` (``bb2_gaps``, a JSON
+list: topic, missing, sequence numbers and log times either side; :class:`bb2_tools.bagfile.Gap`).  After each
+batch holding a ``/bb2/state_native``, the recorder publishes ``/bb2/recorder/ack`` (``std_msgs/Header``, stamp =
+the newest state it holds): a lockstep simulator with ``recorder_ack_window`` waits for it, so a stalled
+recorder slows the graph instead of losing messages.
+
 Stopping: SIGINT or SIGTERM finish the bag (summary, ``rosbag2`` metadata record, metadata.yaml)
 and exit 0.  A SIGKILL loses at most the open chunk (``--chunk-size`` bytes, or
 ``--flush-period`` seconds of data); ``bb2_tools.bagfile.recover`` repairs such a bag.
@@ -30,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import math
 import signal
 import sys
 import threading
@@ -38,12 +48,15 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from bb2_msgs_py.contract import ContractError, TopicSpec, message_class, select_topics
-from bb2_tools.bagfile import BagError, BagWriter, qos_entry
+from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
 from bb2_ros.node_common import take_all
 
 ODOM_TOPIC = "/bb2/odom"
 ODOM_TYPE = "nav_msgs/msg/Odometry"
 CLOCK_TOPIC = "/clock"
+STATE_TOPIC = "/bb2/state_native"
+ACK_TOPIC = "/bb2/recorder/ack"
+SEQUENCE_UNSUPPORTED = 2**63  # rmw: RMW_MESSAGE_INFO_SEQUENCE_NUMBER_UNSUPPORTED is UINT64_MAX
 TF_TOPIC = "/tf"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 # tf2_ros::DynamicBroadcasterQoS: reliable, volatile, keep last 100
@@ -102,14 +115,18 @@ def tf_cdr_from_odometry_cdr(data: bytes) -> bytes:
     return encode(tf_from_odometry(deserialize(data, odometry)))
 
 
-def subscription_qos(spec: TopicSpec, depth: int):
-    """The recorder's request: the contract's reliability/durability (compatible with the
-    publishers') with a deep queue so bursts (lockstep) are not dropped."""
-    from rclpy.qos import HistoryPolicy
+def subscription_qos(spec: TopicSpec, depth: int, *, best_effort: bool = False):
+    """The recorder's request: what the contract's writers offer (reliable where they write reliable, as rosbag2
+    subscribes with the publishers' QoS: a stalled recorder gets the samples again from the writers' histories),
+    with a deep queue so bursts (lockstep) are not dropped; ``best_effort`` for a topic with a best-effort
+    publisher (an external simulator or HIL bench), which a reliable request would not match."""
+    from rclpy.qos import HistoryPolicy, ReliabilityPolicy
 
     from bb2_msgs_py.contract import qos_profile
 
-    q = qos_profile(spec.name, reader=True)
+    q = qos_profile(spec.name)
+    if best_effort:
+        q.reliability = ReliabilityPolicy.BEST_EFFORT
     q.history = HistoryPolicy.KEEP_LAST
     q.depth = max(int(depth), q.depth)
     return q
@@ -120,7 +137,7 @@ class Recorder:
 
     def __init__(self, bag: BagWriter, topics: Sequence[TopicSpec], *, tf_from_odom: bool = True,
                  flush_period_s: float = 1.0, queue_depth: int = 1000, node_name: str = "bb2_recorder",
-                 use_sim_time: bool = False, node=None):
+                 use_sim_time: bool = False, node=None, acknowledge: bool = True, gap_warn_s: float = 1.0):
         from rclpy.clock import Clock, ClockType
         from rclpy.node import Node
         from rclpy.serialization import deserialize_message
@@ -138,18 +155,58 @@ class Recorder:
         self._lock = threading.Lock()
         self._subs = []  # (subscription, spec or None: /clock for the time only)
         self.specs = {t.name: t for t in topics if not t.bag_only}
+        self._queue_depth = int(queue_depth)
         for spec in self.specs.values():
-            self._subs.append((self.node.create_subscription(
-                message_class(spec.type), spec.name, self._unused_callback,
-                subscription_qos(spec, queue_depth), raw=True), spec))
+            self._subs.append((self._subscribe(spec), spec))
+        self._best_effort: set[str] = set()  # topics re-subscribed best effort (a best-effort publisher came)
         if self.use_sim_time and CLOCK_TOPIC not in self.specs:
             from bb2_msgs_py.contract import qos_profile
             self._subs.append((self.node.create_subscription(
                 self._clock_type, CLOCK_TOPIC, self._unused_callback,
                 qos_profile(CLOCK_TOPIC), raw=True), None))
+        self.gaps = SequenceGaps()
+        self._gap_warn_s, self._gap_warned_wall, self._gaps_warned = float(gap_warn_s), -math.inf, 0
+        self._ack_pub = None
+        self._acked_ns: int | None = None
+        self._newest_state_ns: int | None = None
+        if acknowledge and STATE_TOPIC in self.specs:
+            from bb2_msgs_py.contract import qos_profile
+            self._ack_pub = self.node.create_publisher(message_class("std_msgs/msg/Header"), ACK_TOPIC,
+                                                       qos_profile(ACK_TOPIC))
+            self._state_type = message_class("std_msgs/msg/Float64MultiArray")
         self.flush_period_s = float(flush_period_s)
         self._next_flush = time.monotonic() + self.flush_period_s
         self._wait_set = None
+
+    def _subscribe(self, spec: TopicSpec, *, best_effort: bool = False):
+        return self.node.create_subscription(message_class(spec.type), spec.name, self._unused_callback,
+                                             subscription_qos(spec, self._queue_depth, best_effort=best_effort),
+                                             raw=True)
+
+    def adapt_reliability(self) -> list[str]:
+        """Re-subscribe best effort to every topic a best-effort publisher now offers (a reliable request does
+        not match it, and the topic would go unrecorded); returns those topics, each said once in a warning."""
+        from rclpy.qos import ReliabilityPolicy
+
+        changed = []
+        for k, (sub, spec) in enumerate(self._subs):
+            if spec is None or spec.name in self._best_effort \
+                    or sub.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
+                continue
+            try:
+                infos = self.node.get_publishers_info_by_topic(spec.name)
+            except Exception:  # discovery hiccup: try again at the next flush
+                continue
+            if any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos):
+                self._subs[k] = (self._subscribe(spec, best_effort=True), spec)
+                self.node.destroy_subscription(sub)
+                self._best_effort.add(spec.name)
+                self._wait_set = None
+                changed.append(spec.name)
+                self.node.get_logger().warning(
+                    f"{spec.name}: a publisher offers best effort: recording it best effort from now on (a stalled "
+                    "recorder may lose its samples; any gap is still detected and written into the bag)")
+        return changed
 
     def _offered_qos(self, name: str) -> list[dict[str, Any]]:
         try:
@@ -195,9 +252,12 @@ class Recorder:
                 self._sim_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
             if spec is not None:
                 self._on_message(spec, data, info)
+        self._acknowledge()
+        self._warn_gaps()
         if self.flush_period_s > 0 and time.monotonic() >= self._next_flush:
             self._next_flush = time.monotonic() + self.flush_period_s
             self._flush()
+            self.adapt_reliability()
         return len(taken)
 
     def _serve(self, ready: set) -> None:
@@ -215,22 +275,56 @@ class Recorder:
     def _on_message(self, spec: TopicSpec, data: bytes, info: dict) -> None:
         t_ns = self._now_ns()
         pub_ns = int(info.get("source_timestamp", t_ns)) if isinstance(info, dict) else t_ns
+        seq = int(info.get("publication_sequence_number", 0)) if isinstance(info, dict) else 0
+        seq = 0 if seq >= SEQUENCE_UNSUPPORTED else seq
         with self._lock:
             if spec.name not in self.bag.topics:
-                self.bag.add_topic(spec.name, spec.type, offered_qos=self._offered_qos(spec.name))
-            self.bag.write(spec.name, data, t_ns, pub_ns)
+                self.bag.add_topic(spec.name, spec.type, offered_qos=self._offered_qos(spec.name),
+                                   dds_sequence=seq > 0)
+            self.bag.write(spec.name, data, t_ns, pub_ns, sequence=seq if self.bag.topics[spec.name].dds_sequence
+                           else None)
+            if seq > 0:
+                self.gaps.observe(spec.name, seq, t_ns, stream_source(spec.type, data), pub_ns)
+            if self._ack_pub is not None and spec.name == STATE_TOPIC:
+                from bb2_msgs_py.conversions import seconds_to_ns
+                state_ns = seconds_to_ns(float(self._deserialize(data, self._state_type).data[0]))
+                if self._newest_state_ns is None or state_ns > self._newest_state_ns:
+                    self._newest_state_ns = state_ns
             if self.tf_from_odom and spec.name == ODOM_TOPIC:
                 if TF_TOPIC not in self.bag.topics:
                     self.bag.add_topic(TF_TOPIC, TF_TYPE, offered_qos=[TF_QOS])
                 self.bag.write(TF_TOPIC, tf_cdr_from_odometry_cdr(data), t_ns, pub_ns)
+
+    def _acknowledge(self) -> None:
+        """Tell the simulator which states the bag holds (after the batch is written)."""
+        if self._ack_pub is None or self._newest_state_ns is None or self._newest_state_ns == self._acked_ns:
+            return
+        from std_msgs.msg import Header
+
+        from bb2_ros.node_common import time_msg
+
+        self._acked_ns = self._newest_state_ns
+        self._ack_pub.publish(Header(stamp=time_msg(self._acked_ns)))
+
+    def _warn_gaps(self, *, final: bool = False) -> None:
+        """Log the gaps found since the last warning (at most one warning per ``gap_warn_s`` wall s)."""
+        new = self.gaps.gaps[self._gaps_warned:]
+        if not new or (not final and time.monotonic() - self._gap_warned_wall < self._gap_warn_s):
+            return
+        self._gap_warned_wall, self._gaps_warned = time.monotonic(), len(self.gaps.gaps)
+        shown = "; ".join(g.describe() for g in new[:3]) + (f"; and {len(new) - 3} more" if len(new) > 3 else "")
+        self.node.get_logger().warning(f"messages lost before they reached the recorder ({len(new)} gap(s), "
+                                       f"{sum(g.missing for g in new)} message(s)): {shown}")
 
     def _flush(self) -> None:
         with self._lock:
             self.bag.flush()
 
     def close(self) -> Path:
-        """Finish the bag and destroy the node."""
+        """Finish the bag (its gaps in ``custom_data``) and destroy the node."""
+        self._warn_gaps(final=True)
         with self._lock:
+            self.bag.custom_data[GAPS_KEY] = self.gaps.to_json()
             path = self.bag.close()
         self.node.destroy_node()
         return path
@@ -366,6 +460,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         path = rec.close()
         counts = {n: t.message_count for n, t in bag.topics.items()}
         print(f"bb2-record: wrote {bag.message_count} messages to {path}: {counts}", flush=True)
+        g = rec.gaps
+        print(f"bb2-record: gaps: {len(g.gaps)} ({g.missing} message(s) lost before reaching the recorder)"
+              + "".join(f"\n  {x.describe()}" for x in g.gaps[:20])
+              + (f"\n  ... and {len(g.gaps) - 20} more (bag metadata custom_data {GAPS_KEY})" if len(g.gaps) > 20
+                 else ""), flush=True)
         if rclpy.ok():
             rclpy.shutdown()
         for s, h in previous.items():  # told to stop: ignore further stop signals until exited (see run_node)

@@ -146,7 +146,12 @@ def test_graph_specs_pass_mission_mode_params_and_sim_time(tmp_path):
     sim = by["simulator"].argv(0)
     # the params file first: for '/**' keys the last source wins, so the launcher's -p values must follow it
     assert sim[sim.index("--ros-args") + 1:] == ["--params-file", str(params), "-p", f"mission_file:={mission}",
-                                                 "-p", "time_mode:=realtime"]
+                                                 "-p", "time_mode:=realtime", "-p", "wait_for_readers:=true"]
+    # lockstep with a recorder: the simulator also waits for the recorder's acknowledgement (issue 10)
+    lock = {s.name: s for s in L.graph_specs(mission, run, mode="lockstep", runner="python")}["simulator"].argv(0)
+    assert f"recorder_ack_window:={L.RECORDER_ACK_WINDOW}" in lock and L.RECORDER_ACK_WINDOW > 0
+    bare = {s.name: s for s in L.graph_specs(mission, run, mode="lockstep", runner="python", record=False)}
+    assert not [a for a in bare["simulator"].argv(0) if "recorder_ack_window" in a or "wait_for_readers" in a]
     assert by["simulator"].finishes_graph
     for n in ("planner", "path_following", "l1_autopilot", "mixer"):
         assert "use_sim_time:=true" in by[n].argv(0) and f"mission_file:={mission}" in by[n].argv(0)

@@ -1,6 +1,8 @@
 """Real DDS: publishers in this process, the recorder as a separate process, the bag checked after."""
 from __future__ import annotations
 
+import json
+
 import random
 import signal
 import subprocess
@@ -121,11 +123,12 @@ def test_recorder_records_real_dds_topics(tmp_path, domain_id):
     assert counts["/bb2/planes/cmd"] == N_CMD
     assert counts["/tf"] == N_ODOM  # one transform per odometry message
     assert counts["/bb2/path"] == 1
-    assert 1 <= counts["/clock"] <= 10
+    assert counts["/clock"] == 10   # written reliable, read reliable by the recorder: none lost
     qos = {t["topic_metadata"]["name"]: t["topic_metadata"]["offered_qos_profiles"]
            for t in info["topics_with_message_count"]}
     assert qos["/bb2/odom"][0]["reliability"] == "reliable"  # what the publisher offered (issue 13: state topics
-    assert qos["/clock"][0]["reliability"] == "best_effort"  # are written reliable; /clock stays ClockQoS)
+    assert qos["/clock"][0]["reliability"] == "reliable"     # are written reliable; /clock too, issue 10)
+    assert json.loads(info["custom_data"]["bb2_gaps"]) == []  # every sample published arrived
     assert qos["/bb2/path"][0]["durability"] == "transient_local"
 
     # the .mcap independently
@@ -181,6 +184,48 @@ def test_sigkilled_recorder_leaves_a_recoverable_bag(tmp_path, domain_id):
     assert rep.was_truncated and rep.message_counts["/bb2/odom"] == kept
     info = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert info["message_count"] == rep.message_count and not BagReader(out).truncated
+
+
+def test_a_best_effort_publisher_is_recorded_best_effort_and_its_losses_still_counted(tmp_path, domain_id):
+    """The recorder reads what the contract's writers offer (reliable); an external best-effort publisher of
+    /bb2/odom (a HIL bench) would not match that request, so the recorder re-subscribes best effort at its next
+    flush, says so, and records it; the messages it missed before are a head gap in the bag's metadata."""
+    from rclpy.qos import ReliabilityPolicy
+
+    out = tmp_path / "be"
+    pubs = Publishers(domain_id)
+    q = qos_profile("/bb2/odom")
+    q.reliability = ReliabilityPolicy.BEST_EFFORT
+    pubs.node.destroy_publisher(pubs.pubs["/bb2/odom"])
+    pubs.pubs = {"/bb2/odom": pubs.node.create_publisher(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", q)}
+    proc = _start_recorder(out, domain_id, "--topics", "/bb2/odom", "--flush-period", "0.2", "--no-tf")
+    try:
+        sent = 0
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 30 and pubs.pubs["/bb2/odom"].get_subscription_count() == 0:
+            pubs.pubs["/bb2/odom"].publish(conv.state_to_odometry(_state(sent)))  # unmatched: never received
+            sent += 1
+            time.sleep(0.02)
+        time.sleep(0.5)
+        for _ in range(50):
+            pubs.pubs["/bb2/odom"].publish(conv.state_to_odometry(_state(sent)))
+            sent += 1
+            time.sleep(0.004)
+        time.sleep(0.7)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=15)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        pubs.close()
+    assert proc.returncode == 0, stderr
+    assert "a publisher offers best effort: recording it best effort" in stderr, stderr
+    info = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    kept = info["topics_with_message_count"][0]["message_count"]
+    assert kept >= 50, info
+    gaps = json.loads(info["custom_data"]["bb2_gaps"])
+    assert sent > 1 and kept + sum(g["missing"] for g in gaps) == sent, (sent, kept, gaps)
+    assert all(g["after_sequence"] == 0 for g in gaps)   # only the ones before it matched
 
 
 # The /tf bytes the recorder wrote for _fixed_odometry before it used the standard (de)serializers (with its own

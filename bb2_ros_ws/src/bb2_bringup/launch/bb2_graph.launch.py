@@ -13,8 +13,9 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
 
 It starts what ``bb2-launch`` starts — simulator, planner, path_following, l1_autopilot, mixer and (record) the
 recorder, each its own process, the recorder and the planner at nice +10 — with the same parameters: the
-params file, then the mission, the time mode, use_sim_time (the simulator is the clock) and, in lockstep with a
-recorder, ``wait_for_readers`` (the bag misses nothing).  The simulator ends the run where bb2-launch does (the
+params file, then the mission, the time mode, use_sim_time (the simulator is the clock) and, with a recorder,
+``wait_for_readers`` (the bag misses nothing from the first step) and in lockstep ``recorder_ack_window`` (the graph
+waits for a stalled recorder rather than lose messages).  The simulator ends the run where bb2-launch does (the
 mission duration, or ``end_at_progress``: the path flown) and exits; its exit stops the whole launch (the
 recorder finishes its bag on the SIGINT).  Ctrl-C stops every node cleanly.
 """
@@ -34,6 +35,7 @@ from launch_ros.actions import Node
 SHARE = Path(get_package_share_directory("bb2_bringup"))
 NOT_REMAPPED = ("/diagnostics", "/tf")  # the standard diagnostics topic is global; /tf is written into bags only
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
+RECORDER_ACK_WINDOW = 10  # bb2_tools.launcher.RECORDER_ACK_WINDOW: steps the simulator may run ahead of the recorder
 
 ARGUMENTS = {
     "mission": ("canyon", "a mission in share/bb2_bringup/missions (name without .yaml) or a mission file"),
@@ -86,7 +88,7 @@ def remappings(namespace: str, node: str) -> list[tuple[str, str]]:
 
     if node == "simulator":
         names = [t.name for t in CONTRACT if t.publisher == "simulator"] + [
-            "/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress"]
+            "/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress", "/bb2/recorder/ack"]
     elif node == "recorder":
         names = [t.name for t in CONTRACT]
     else:
@@ -123,7 +125,9 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     ]
     sim = node("bb2_ros", "simulator", {"use_sim_time": False, "time_mode": time_mode, "exit_at_end": True,
                                         "end_at_progress": True,
-                                        "wait_for_readers": record and time_mode == "lockstep"})
+                                        "wait_for_readers": record,
+                                        "recorder_ack_window": RECORDER_ACK_WINDOW if record and time_mode == "lockstep"
+                                        else 0})
     actions.append(sim)
     if stop_launch:
         actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=lambda event, _ctx: [
