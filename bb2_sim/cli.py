@@ -168,6 +168,7 @@ def add_sea_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--at", type=point_xy, metavar="X,Y", default=(0.0, 0.0),
                    help="earth point (m, native frame; default 0,0)")
     p.add_argument("--out", metavar="FILE.csv", required=True, help="the record: t_s,eta_m")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out file (else exit 2)")
     return p
 
 
@@ -315,9 +316,15 @@ def run_sea_cli(a: argparse.Namespace) -> int:
     import numpy as np
 
     from .environment import Environment, sea_from_mapping
+    from .outputs import check_output_file, os_error_line
     from .parameters import load_parameters
     from .waves import SeaStateError
 
+    try:  # before the work: no silent overwrite, and a folder that does not take data fails now
+        check_output_file(a.out, overwrite=a.overwrite, what="--out")
+    except OSError as e:
+        print(f"bb2-sim: error: {os_error_line(e, a.out)}", file=sys.stderr)
+        return 2
     try:
         if a.duration <= 0:
             raise ValueError(f"duration must be > 0 s, got {a.duration:g}")

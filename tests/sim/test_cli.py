@@ -120,6 +120,20 @@ def test_sea_command_regular_wave_is_the_cosine(tmp_path):
         assert eta == pytest.approx(1.5 * math.cos(k * 20 - 2 * math.pi / 8 * t), abs=1e-9)
 
 
+def test_sea_command_refuses_an_existing_out_file_unless_overwrite(tmp_path):
+    """Issue 10, point 5: an existing record is kept (exit 2, one line, before the work) unless --overwrite."""
+    out = tmp_path / "eta.csv"
+    out.write_text("keep me\n")
+    args = ("sea", "--spectrum", "regular", "--amplitude-m", "1", "--period-s", "8", "--duration", "4", "--out",
+            str(out))
+    p = run(*args)
+    assert p.returncode == 2 and "exists (give --overwrite to replace it)" in p.stderr, p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and out.read_text() == "keep me\n"
+    p = run(*args, "--overwrite")
+    assert p.returncode == 0, p.stderr
+    assert _read(out)[0] == ["t_s", "eta_m"]
+
+
 def test_sea_command_reads_a_component_file(tmp_path):
     f = tmp_path / "comps.csv"
     f.write_text("amplitude_m,omega_rad_s,direction_deg,phase_deg\n1.0,0.6,0,0\n0.5,0.9,90,45\n")
