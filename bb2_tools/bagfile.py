@@ -447,6 +447,8 @@ def read_metadata(bag_dir: str | os.PathLike) -> dict[str, Any]:
     try:
         doc = yaml.safe_load(path.read_text(encoding="utf-8"))
         return doc["rosbag2_bagfile_information"]
+    except UnicodeDecodeError as exc:
+        raise BagError(f"cannot read {path}: not valid UTF-8 text (byte {exc.start})") from None
     except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
         raise BagError(f"cannot read {path}: {exc}") from None
 

@@ -392,8 +392,16 @@ def _parameters(node) -> dict[str, Any]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point (``ros2 run bb2_tools recorder``): record until SIGINT/SIGTERM, then finish the bag. Returns
-    the exit code.  Configured by its ROS parameters (:data:`PARAMETERS`, ``--ros-args -p`` or a params file);
-    a command-line option, when given, wins over its parameter."""
+    the exit code (0 done, 1 an error while recording (the bag is still finished), 2 bad input or an OS error such
+    as a read-only or full bag folder: one line naming the file).  Configured by its ROS parameters
+    (:data:`PARAMETERS`, ``--ros-args -p`` or a params file); a command-line option, when given, wins over its
+    parameter."""
+    from bb2_sim.outputs import run_cli
+
+    return run_cli("bb2-record", lambda: _main(argv))
+
+
+def _main(argv: Sequence[str] | None) -> int:
     import rclpy
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
     from rclpy.node import Node
@@ -432,8 +440,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         bag = BagWriter(out, chunk_size=int(chunk), compression=par["compression"],
                         overwrite=args.overwrite or par["overwrite"],
                         custom_data={"recorder": "bb2_tools.recorder", "topics": " ".join(s.name for s in specs)})
-    except (ContractError, BagError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
-        print(f"bb2-record: error: {exc}", file=sys.stderr)
+    except (ContractError, BagError, InvalidParameterTypeException, InvalidParameterValueException, OSError) as exc:
+        from bb2_sim.outputs import os_error_line
+
+        print(f"bb2-record: error: {os_error_line(exc) if isinstance(exc, OSError) else exc}", file=sys.stderr)
         if node is not None:
             node.destroy_node()
         rclpy.shutdown()

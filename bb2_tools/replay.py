@@ -615,7 +615,14 @@ def _run_open_loop(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``bb2-replay``; returns the exit status."""
+    """Entry point of ``bb2-replay``; returns the exit status (0 done, 1 the open-loop run diverged, 2 bad input or
+    an OS error: one line naming the file, 130 interrupted)."""
+    from bb2_sim.outputs import run_cli
+
+    return run_cli("bb2-replay", lambda: _main(argv))
+
+
+def _main(argv: Sequence[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     args = _parser().parse_args(argv)
     from bb2_msgs_py.ros_env import ros_environment_or_error

@@ -359,6 +359,33 @@ def test_analyze_read_only_out_fails_before_the_analysis(tmp_path):
     assert (tmp_path / "out" / "report.html").read_text() == "keep"
 
 
+@needs_unshare
+@pytest.mark.ros
+def test_record_on_a_read_only_folder_is_exit_2_with_one_line(tmp_path):
+    """bb2-record (the recorder node) told to write where it cannot: one line naming the folder, exit 2."""
+    mnt = tmp_path / "m"
+    p = run_on_mount([PY, "-m", "bb2_tools.recorder", "--out", str(mnt / "sub" / "rec")], mnt, state="ro",
+                     env=ros_env(), timeout=120)
+    assert p.returncode == 2, p.stdout + p.stderr
+    line = one_error_line(p.stderr, "bb2-record")
+    assert str(mnt / "sub") in line and "Read-only" in line, line
+
+
+@pytest.mark.ros
+def test_replay_of_a_bag_with_a_non_utf8_metadata_file_is_exit_2_with_one_line(tmp_path):
+    """bb2-replay on a bag whose metadata.yaml is not text: one line naming the file, exit 2, no traceback."""
+    from bb2_tools.bagfile import BagWriter
+
+    bag = tmp_path / "bag"
+    with BagWriter(bag) as w:
+        w.add_topic("/clock", "rosgraph_msgs/msg/Clock")
+    (bag / "metadata.yaml").write_bytes(b"rosbag2_bagfile_information:\n  version: \xff\xfe 9\n")
+    p = bb2("bb2-replay", str(bag))
+    assert p.returncode == 2, p.stdout + p.stderr
+    line = one_error_line(p.stderr, "bb2-replay")
+    assert "metadata.yaml" in line and "UTF-8" in line, line
+
+
 # ------------------------------------------------------------------------------------------ node parameters
 @pytest.mark.ros
 @pytest.mark.parametrize("bad", ["lockstep_timeout_s:=abc", "lockstep_timeout_s:=.nan", "wait_for_readers:=maybe"])
