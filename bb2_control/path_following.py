@@ -161,6 +161,21 @@ class PathFollowingLaw:
     def finished(self) -> bool:
         return self.gamma >= self.path.tf
 
+    def rejoin(self, p: np.ndarray) -> tuple[float, float]:
+        """Join a run under way: the virtual time goes to the path point closest to the vehicle position ``p``
+        (m, the path's frame), as a law that had been running would hold it (the law then steps from there).
+        Returns (gamma s, distance m).  For a controller restarted mid-run; a law that starts with the run keeps
+        ``gamma0``."""
+        p = np.asarray(p, dtype=float)
+        if hasattr(self.path, "closest_point"):
+            t, _, d = self.path.closest_point(p)
+        else:
+            ts = np.linspace(self.path.t0, self.path.tf, 20001)
+            d2 = np.array([np.sum((np.asarray(self.path(t), float) - p) ** 2) for t in ts])
+            t, d = float(ts[int(np.argmin(d2))]), float(np.sqrt(d2.min()))
+        self.gamma = float(t)
+        return self.gamma, float(d)
+
 
 class PathFollowing3D(PathFollowingLaw):
     """The paper's 3-D SO(3) law.  ``step(p_I, R_BI, v_flu)`` once per Ts; ``reset()`` restarts gamma.

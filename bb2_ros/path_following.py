@@ -11,6 +11,12 @@ The path comes from the planner's ``/bb2/path/bernstein`` (``path_source: topic`
 the mission file (``path_source: mission``).  A state whose stamp was already answered (the lockstep
 simulator re-sends unanswered states) is answered again from the cache, the law is not stepped twice.
 
+Restarted mid-run (parameter ``rejoin_run: true``, which ``bb2-launch --restart path_following=restart`` sets on
+every restart): if the first state this node answers is not the run's first (t > 0), it rejoins the run where it
+stands — the virtual time goes to the path point closest to the vehicle
+(:meth:`bb2_control.path_following.PathFollowingLaw.rejoin`), as the law had been holding it — instead of chasing
+the path's start; said in its log and its status (``rejoined_at_s``).
+
 Parameters: ``mission_file``, ``state_source`` (native | odometry), ``path_source`` (topic | mission),
 ``status_period_s``, ``strict_remaps``.
 """
@@ -39,6 +45,10 @@ TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/path/bernstein", "/bb2/guidanc
           "/bb2/guidance/path_error", "/bb2/mission/progress", "/bb2/status")
 
 
+REJOIN_AFTER_S = 1e-6
+"""A first state later than this (sim s; runs start at t = 0) means the node joined a run under way."""
+
+
 class PathFollowing(Node):
     def __init__(self, argv: Sequence[str]):
         super().__init__("path_following")
@@ -50,6 +60,9 @@ class PathFollowing(Node):
         self.path_source = require_choice("path_source", declare(
             node, "path_source", "topic", "topic (/bb2/path/bernstein from the planner) | mission (mission file)"),
             ("topic", "mission"))
+        self.rejoin_run = bool(declare(node, "rejoin_run", False, "this node joins a run under way (bb2-launch sets "
+                                       "it on a restart): the virtual time starts at the path point closest to "
+                                       "the vehicle, not at the path's start"))
         period = require_positive("status_period_s", declare(node, "status_period_s", 1.0,
                                                              "wall period of this node's /bb2/status"))
         strict = bool(declare(node, "strict_remaps", False, "a remap rule naming no topic of this node is an error"))
@@ -61,6 +74,8 @@ class PathFollowing(Node):
         self.cache = StampedCache()
         self.counts = {"states": 0, "answered": 0, "replayed": 0, "waiting_for_path": 0, "errors": 0}
         self.finished = False
+        self.rejoined_at_s = ""  # the sim time this node joined a run under way ('' = it started with the run)
+        self._stepped = False
         self.pub = {n: node.create_publisher(message_class(topic(n).type), n, qos_profile(n)) for n in TOPICS[3:6]}
         if self.path_source == "mission":
             self._build(self.mission.path)
@@ -72,6 +87,7 @@ class PathFollowing(Node):
         self.status = NodeStatus(node, "bb2/path_following", period, lambda: {
             "mission": self.mission.name, "path_source": self.path_source, "state_source": source,
             "path_received": str(self.stack is not None).lower(), "finished": str(self.finished).lower(),
+            "rejoined_at_s": self.rejoined_at_s,
             **{k: str(v) for k, v in self.counts.items()}})
 
     def _build(self, path) -> None:
@@ -112,6 +128,14 @@ class PathFollowing(Node):
         stack = self.stack
         try:
             x = stack.inputs(state)  # the stack's own frame conversion (shared with Stack.step)
+            if not self._stepped:
+                self._stepped = True
+                if self.rejoin_run and state.t > REJOIN_AFTER_S:  # restarted mid-run: rejoin where it is
+                    gamma, dist = stack.guidance.rejoin(x["p"])
+                    self.rejoined_at_s = f"{state.t:.3f}"
+                    self.get_logger().warning(
+                        f"joined a run under way at t = {state.t:.3f} s: virtual time set to the closest path point, "
+                        f"gamma = {gamma:.3f} s ({dist:.2f} m from the vehicle)")
             pf = stack.guidance.step(x["p"], x["R_BI"], x["v_flu"])
         except (NonFiniteInputError, PathFollowingError, ValueError) as exc:
             self.counts["errors"] += 1

@@ -335,7 +335,13 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 ros += ["-p", f"recorder_ack_window:={RECORDER_ACK_WINDOW}"]
         else:
             ros += ["-p", "use_sim_time:=true"]
-        specs.append(ProcessSpec(node.name, [*base, *ros], policy, finishes_graph=node.name == "simulator",
+        argv = [*base, *ros]
+
+        def command(attempt: int, argv=argv, flag=REJOINING.get(node.name)) -> list[str]:
+            """A restarted attempt of a node with state along the run joins the run where it stands."""
+            return argv + (["-p", f"{flag}:=true"] if flag and attempt > 0 else [])
+
+        specs.append(ProcessSpec(node.name, command, policy, finishes_graph=node.name == "simulator",
                                  nice=BACKGROUND_NICE if node.name in BACKGROUND_NODES else 0,
                                  early=node.name != "simulator" or mode == "lockstep"))
     first = [s for s in specs if s.ready is not None]
@@ -406,6 +412,12 @@ DEFAULT_STALL_TIMEOUT_S = 60.0
 """Wall seconds without the sim time advancing after which ``bb2-launch`` stops the graph as stalled (the
 simulator's own lockstep timeout steps on held commands after 0.5 s by default, so a graph that lives never
 stands still this long)."""
+
+REJOINING = {"path_following": "rejoin_run"}
+"""Nodes with state along the run, and the parameter that makes a restarted one rejoin the run where it stands (the
+path following's virtual time from the vehicle's closest path point).  The other controllers rejoin from the current
+state by themselves: the L1 autopilot's predictor starts at the first measurement, the mixer is stateless, the
+planner re-publishes its latched path."""
 
 NOT_RESTARTABLE = {
     "simulator": "a new simulator starts again at t = 0 from the mission's initial state while the rest of the "

@@ -180,3 +180,18 @@ def test_los_kinematic_convergence(circle_native):
         ys.append(out.y_T)
     assert ys[0] == pytest.approx(-50.0, rel=1e-3)                   # outside the CCW circle = right of it
     assert ys[-1] == pytest.approx(-50.0 * math.tan(5.0 * V / 400.0), rel=0.15)
+
+
+def test_rejoin_sets_the_virtual_time_to_the_closest_path_point(circle_native):
+    """A law restarted mid-run (issue 10, point 3) starts at the path point closest to the vehicle, not at gamma0:
+    a vehicle 3 m outside the path at t = 120 s rejoins at gamma = 120 s, 3 m away; the law then steps from there."""
+    path = circle_native
+    pf = PathFollowing3D(path, PFGains.from_config())
+    t_true = path.t0 + 120.0
+    p0 = np.asarray(path(t_true))
+    radial = np.array([p0[0], p0[1], 0.0]) / math.hypot(p0[0], p0[1])
+    gamma, dist = pf.rejoin(p0 + 3.0 * radial)
+    assert gamma == pytest.approx(t_true, abs=0.05) and dist == pytest.approx(3.0, abs=0.01)  # a Bernstein "circle"
+    assert pf.gamma == gamma
+    pf.reset()
+    assert pf.gamma == path.t0 + pf.gains.gamma0

@@ -152,6 +152,10 @@ def test_graph_specs_pass_mission_mode_params_and_sim_time(tmp_path):
     assert f"recorder_ack_window:={L.RECORDER_ACK_WINDOW}" in lock and L.RECORDER_ACK_WINDOW > 0
     bare = {s.name: s for s in L.graph_specs(mission, run, mode="lockstep", runner="python", record=False)}
     assert not [a for a in bare["simulator"].argv(0) if "recorder_ack_window" in a or "wait_for_readers" in a]
+    # a restarted path_following rejoins the run where it stands (issue 10, point 3); the first attempt does not
+    pf = by["path_following"]
+    assert "rejoin_run:=true" not in pf.argv(0) and pf.argv(1)[-2:] == ["-p", "rejoin_run:=true"]
+    assert not [a for a in by["l1_autopilot"].argv(1) if "rejoin" in a]
     assert by["simulator"].finishes_graph
     for n in ("planner", "path_following", "l1_autopilot", "mixer"):
         assert "use_sim_time:=true" in by[n].argv(0) and f"mission_file:={mission}" in by[n].argv(0)

@@ -1,0 +1,87 @@
+"""Issue 10, point 3: restarts that resume or refuse, on the real graph.
+
+A path follower killed mid-run and restarted by ``bb2-launch --restart path_following=restart:1`` rejoins the run
+where it stands: its virtual time goes to the path point closest to the vehicle (not the path's start), so the
+mission completes with path errors as small as before the fault.  (The simulator's restart is refused up front:
+tests/tools/test_exit_codes.py and test_launcher.py.)
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
+
+REPO = Path(__file__).resolve().parents[2]
+PY = sys.executable
+
+pytestmark = pytest.mark.ros
+
+
+def _pid_of(node: str, mission: Path, timeout_s: float = 60.0) -> int:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout_s:
+        for f in Path("/proc").glob("[0-9]*/cmdline"):
+            try:
+                cmd = f.read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if "launcher" not in cmd and f"'{node}'" in cmd and str(mission) in cmd:
+                return int(f.parent.name)
+        time.sleep(0.2)
+    raise AssertionError(f"no {node} process for {mission}")
+
+
+def test_path_following_restarted_mid_run_rejoins_where_the_vehicle_is(tmp_path):
+    pytest.importorskip("rclpy")
+    from bb2_tools.bag_run import read_bag
+
+    mission = tmp_path / "canyon_short.yaml"
+    mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nname: canyon_short\nduration_s: 90\n")
+    out = tmp_path / "run"
+    p = subprocess.Popen([PY, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--end-at", "simulator",
+                          "--restart", "path_following=restart:1", "--timeout", "600"], cwd=tmp_path, env=ros_env(),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    seen = ""
+    try:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 240:  # until the monitor shows the sim time past 20 s (of 90)
+            line = p.stderr.readline()
+            if not line and p.poll() is not None:
+                break
+            seen += line
+            m = re.search(r"sim\s+([0-9.]+) s", line)
+            if m and float(m.group(1)) >= 20.0:
+                break
+        os.kill(_pid_of("path_following", mission), signal.SIGKILL)
+        _, err = p.communicate(timeout=600)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    err = seen + err
+    assert p.returncode == 0, err[-4000:]
+    assert re.search(r"path_following.*SIGKILL", err), err[-3000:]
+    log = (out / "logs" / "path_following.log").read_text()
+    m = re.search(r"joined a run under way at t = ([0-9.]+) s: virtual time set to the closest path point, "
+                  r"gamma = ([0-9.]+) s \(([0-9.]+) m from the vehicle\)", log)
+    assert m, log[-3000:]
+    t_join, gamma, dist = (float(v) for v in m.groups())
+    # where the vehicle is, 50 m or more along the path from its start (20 s at 2.5 m/s)
+    assert 20.0 <= t_join < 90.0 and dist < 10.0 and abs(gamma - t_join) < 30.0, m.group(0)
+    run = read_bag(out)
+    e = run.path_error
+    after = e.t > t_join
+    assert after.sum() > 100, (t_join, len(e))
+    # the path follower's own errors after it rejoined stay at the size of a normal run (a follower that started
+    # again from the path's start would see the vehicle hundreds of metres from its desired point)
+    assert np.max(np.abs(e.v[after, 1:])) < 10.0, np.max(np.abs(e.v[after]), axis=0)
+    assert abs(run.progress.v[-1, 0] - run.t[-1] / 475.0) < 0.1   # progress continued from where it stood
