@@ -96,14 +96,14 @@ class QosDescription:
 
 
 QOS: dict[str, QosDescription] = {
-    # vehicle state and sensors: written reliable (keep last 20) so that a subscriber with the default reliable
+    # vehicle state and sensors: written reliable (keep last 100) so that a subscriber with the default reliable
     # QoS (RViz, `ros2 topic echo --qos-reliability reliable`) and a best-effort one (qos_profile_sensor_data)
     # both receive them; our controllers read best effort, as sensor data is read, and so also match a
     # best-effort publisher (an external simulator, a HIL bench); the recorder reads reliable (what the writers
     # offer, as rosbag2 does), so that a recorder stalled for up to its lockstep window (10 steps, the
-    # simulator's recorder_ack_window) loses nothing: the writer keeps 20; measured cost in lockstep: README
-    # "QoS choices"
-    "sensor": QosDescription("reliable", "volatile", "keep_last", 20, reader_reliability="best_effort"),
+    # simulator's recorder_ack_window) loses nothing: the writer keeps 100 (a sample dropped in transport on a
+    # loaded machine is repaired from it; 20 was measured too few); measured cost in lockstep: README "QoS choices"
+    "sensor": QosDescription("reliable", "volatile", "keep_last", 100, reader_reliability="best_effort"),
     # commands, guidance outputs and the lockstep state: every sample matters; the writer keeps 100
     # samples so a reader that is not part of the lockstep handshake (recorder, test, tool) may lag 100
     # steps without losing one (reliable keep-last drops unacknowledged samples beyond the depth)
@@ -111,9 +111,8 @@ QOS: dict[str, QosDescription] = {
     # paths are latched so a late subscriber (RViz, recorder) gets the current path
     "latched": QosDescription("reliable", "transient_local", "keep_last", 1),
     # /clock: read as rclcpp::ClockQoS (best effort, what every node's time source asks for) and written
-    # reliable keep last 20, which serves those readers and lets the recorder read it reliable (a stalled
-    # recorder loses no /clock sample within its lockstep window)
-    "clock": QosDescription("reliable", "volatile", "keep_last", 20, reader_reliability="best_effort"),
+    # reliable keep last 100 (as the sensors), which serves those readers and lets the recorder read it reliable
+    "clock": QosDescription("reliable", "volatile", "keep_last", 100, reader_reliability="best_effort"),
     # status / diagnostics
     "status": QosDescription("reliable", "volatile", "keep_last", 10),
     # the sensor models' measurements (/bb2/sensors/*): several samples of a sensor may go out in one ROM step

@@ -120,6 +120,7 @@ LATCHED_OUT = ("/bb2/sea", "/bb2/sensors/mountings")
 TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress",  # progress: end_at_progress
              "/bb2/recorder/ack")  # recorder_ack_window
 TWO_PI = 2.0 * math.pi
+RECORDER_WAIT_WARN_S = 1.0  # a hold for the recorder longer than this (wall s) is said, once per hold
 
 
 class Simulator(Node):
@@ -231,6 +232,7 @@ class Simulator(Node):
         self.ack = RecorderAck(ack_window, step_ns=cv.seconds_to_ns(self.h), t0_ns=self._t_ns(),
                                timeout_s=ack_timeout)
         self._held: StepDecision | None = None  # the controllers' answer, held while the recorder lags
+        self._wait_said = False  # the current hold was said (past RECORDER_WAIT_WARN_S)
 
         # publishers / subscriptions (contract QoS)
         def pub(name):
@@ -360,14 +362,11 @@ class Simulator(Node):
         """Step with the gate's decision (held instead while the recorder lags more than its window); a failsafe
         engaged or released is logged and published once."""
         if self.time_mode is TimeMode.LOCKSTEP and not self.ack.may_step(self._t_ns(), time.monotonic()):
-            if self._held is None:
-                held = "none yet" if self.ack.acked_ns is None else f"up to t = {self.ack.acked_ns * 1e-9:.3f} s"
-                self.warn.warn("recorder_wait", f"step from t = {self.t:.3f} s waits for the recorder (it holds the "
-                               f"states {held}, {self.ack.lag_steps(self._t_ns())} steps behind; "
-                               f"recorder_ack_window {self.ack.window_steps})")
-            self._held = d
+            self._held = d  # (short waits are the normal pace of a loaded machine: said only past 1 s)
             return
-        self._held = None
+        if self._wait_said:
+            self.get_logger().info(f"the recorder caught up: stepping on from t = {self.t:.3f} s")
+        self._held, self._wait_said = None, False
         if d.failsafe != self._failsafe_shown:
             self._failsafe_shown = d.failsafe
             if not d.failsafe:
@@ -406,6 +405,14 @@ class Simulator(Node):
         if not self._stepping() or not self.started:
             return
         if self._held is not None:  # answered; waiting for the recorder, not the controllers
+            waited = time.monotonic() - (self.ack.waiting_since or time.monotonic())
+            if waited >= RECORDER_WAIT_WARN_S and not self._wait_said:
+                self._wait_said = True
+                held = "none yet" if self.ack.acked_ns is None else f"up to t = {self.ack.acked_ns * 1e-9:.3f} s"
+                self.get_logger().warning(
+                    f"step from t = {self.t:.3f} s waits for the recorder for {waited:.1f} s now (it holds the states "
+                    f"{held}, {self.ack.lag_steps(self._t_ns())} steps behind; recorder_ack_window "
+                    f"{self.ack.window_steps}; given up on after recorder_ack_timeout_s {self.ack.timeout_s:g} s)")
             if self.ack.expired(time.monotonic()):
                 self.get_logger().warning(
                     f"the recorder acknowledged nothing for {self.ack.timeout_s:g} s: stepping on without it from "

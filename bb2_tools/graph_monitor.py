@@ -5,14 +5,20 @@ graph questions (which nodes are up, who subscribes to what).
 ``/clock`` and the progress come once per step (hundreds per wall second in lockstep): they are polled, the
 latest sample only, and deserialized with rclpy's standard CDR deserializer; the status is spun.  From the
 samples the monitor derives the real-time factor and when the mission is over (``end_at``).
-:func:`free_domain_id` finds a domain id nobody else uses; :func:`format_status` is the one progress line.
+:func:`free_domain_id` finds a domain id nobody else uses — claimed with a lock file, so two launches on one machine
+never share a domain however close together they start (listening for nodes alone misses a graph still starting,
+whose participants are not discovered yet) — and :func:`format_status` is the one progress line.
 """
 from __future__ import annotations
 
 import collections
+import fcntl
+import os
 import random
+import tempfile
 import threading
 import time
+from pathlib import Path
 from typing import Iterable
 
 from bb2_ros.node_common import take_all
@@ -38,6 +44,7 @@ class GraphMonitor:
                  end_at: str = "either"):
         if end_at not in END_AT:
             raise LaunchError(f"end_at must be one of {END_AT}, got {end_at!r}")
+        self.domain_lock_fd: int | None = None  # the claim of the domain (claim_domain), released by close()
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
@@ -182,6 +189,9 @@ class GraphMonitor:
     def close(self) -> None:
         import rclpy
 
+        if getattr(self, "domain_lock_fd", None) is not None:  # the domain claim goes with the monitor
+            os.close(self.domain_lock_fd)
+            self.domain_lock_fd = None
         self._stop.set()
         self._thread.join(timeout=2.0)
         try:
@@ -193,18 +203,49 @@ class GraphMonitor:
                 rclpy.shutdown(context=self.context)
 
 
+DOMAIN_LOCK_DIR = Path(tempfile.gettempdir()) / "bb2_ros_domains"
+"""Where the domain claims of this machine's launches are (``<id>.lock``, held with ``flock`` while a launch runs;
+the kernel releases a claim when its process ends, however it ends)."""
+
+
+def claim_domain(domain_id: int, lock_dir: Path | None = None) -> int | None:
+    """Claim ``domain_id`` for this process (an open, ``flock``-ed lock file: its descriptor, to keep open for the
+    run and close to release); None when another process holds it."""
+    d = Path(lock_dir or DOMAIN_LOCK_DIR)
+    d.mkdir(parents=True, exist_ok=True)
+    fd = os.open(d / f"{int(domain_id)}.lock", os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        return None
+    os.ftruncate(fd, 0)
+    os.write(fd, f"{os.getpid()}\n".encode())
+    return fd
+
+
 def free_domain_id(*, rng: random.Random | None = None, tries: int = 8, listen_s: float = 0.5,
-                   **monitor_kw) -> GraphMonitor:
-    """A :class:`GraphMonitor` on a random domain id (1..101) where no other node is seen."""
+                   lock_dir: Path | None = None, **monitor_kw) -> GraphMonitor:
+    """A :class:`GraphMonitor` on a random domain id (1..101) that no other launch of this machine has claimed
+    (:func:`claim_domain`) and where no other node is seen; the claim is held until the monitor is closed."""
     rng = rng or random.Random()
-    candidates = rng.sample(list(SAFE_DOMAIN_IDS), tries)
+    candidates = rng.sample(list(SAFE_DOMAIN_IDS), len(SAFE_DOMAIN_IDS))  # every id, in random order
+    listened = []
     for d in candidates:
+        fd = claim_domain(d, lock_dir)
+        if fd is None:  # another launch runs there
+            continue
         mon = GraphMonitor(d, **monitor_kw)
+        mon.domain_lock_fd = fd
         time.sleep(listen_s)
         if not mon.node_names():
             return mon
         mon.close()
-    raise LaunchError(f"no free ROS_DOMAIN_ID among {candidates}; give one with --domain-id")
+        listened.append(d)
+        if len(listened) >= tries:
+            break
+    raise LaunchError(f"no free ROS_DOMAIN_ID in {SAFE_DOMAIN_IDS.start}..{SAFE_DOMAIN_IDS.stop - 1} (the others "
+                      f"claimed by launches of this machine; nodes seen on {listened}); give one with --domain-id")
 
 
 def format_status(sim_time_s: float | None, progress: float | None, rtf: float | None,

@@ -48,7 +48,7 @@ from typing import Mapping, Sequence
 
 from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
 
-from bb2_tools.graph_monitor import END_AT, GraphMonitor, format_status, free_domain_id
+from bb2_tools.graph_monitor import END_AT, GraphMonitor, claim_domain, format_status, free_domain_id
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
                                   Supervisor, parse_restart_policies)
 
@@ -521,8 +521,14 @@ def _main(argv: Sequence[str] | None) -> int:
         return 2
 
     try:
-        monitor = (GraphMonitor(args.domain_id, end_at=args.end_at) if args.domain_id is not None
-                   else free_domain_id(end_at=args.end_at))
+        if args.domain_id is not None:
+            monitor = GraphMonitor(args.domain_id, end_at=args.end_at)
+            monitor.domain_lock_fd = claim_domain(args.domain_id)
+            if monitor.domain_lock_fd is None:
+                print(f"[bb2-launch] warning: another bb2-launch runs on ROS_DOMAIN_ID={args.domain_id}: the two "
+                      "graphs will see each other's topics", file=sys.stderr)
+        else:
+            monitor = free_domain_id(end_at=args.end_at)
     except LaunchError as exc:
         print(f"bb2-launch: error: {exc}", file=sys.stderr)
         return 2

@@ -53,14 +53,14 @@ def test_qos_choices():
         assert q.reliability == ReliabilityPolicy.RELIABLE
         assert qos_profile(name, reader=True).reliability == qos_profile_sensor_data.reliability \
             == ReliabilityPolicy.BEST_EFFORT
-        assert q.history == HistoryPolicy.KEEP_LAST and q.depth == 20  # > the recorder's lockstep window of 10
+        assert q.history == HistoryPolicy.KEEP_LAST and q.depth == 100  # >> the recorder's lockstep window of 10
     for name in ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd"):
         assert qos_profile(name).reliability == ReliabilityPolicy.RELIABLE
     path = qos_profile("/bb2/path")
     assert path.reliability == ReliabilityPolicy.RELIABLE
     assert path.durability == DurabilityPolicy.TRANSIENT_LOCAL
     clock = qos_profile("/clock")  # written reliable: serves rclcpp::ClockQoS readers (best effort) and the recorder
-    assert clock.reliability == ReliabilityPolicy.RELIABLE and clock.depth == 20
+    assert clock.reliability == ReliabilityPolicy.RELIABLE and clock.depth == 100
     assert qos_profile("/clock", reader=True).reliability == ReliabilityPolicy.BEST_EFFORT
     assert set(QOS) >= {t.qos for t in CONTRACT}
 

@@ -605,3 +605,27 @@ def test_bb2_launch_each_node_killed_in_turn_is_reported_and_restarted(tmp_path,
     assert not _children(p.pid)
     assert (out / "metadata.yaml").is_file()                      # the first recorder's bag was repaired
     assert (out.with_name("run_r1") / "metadata.yaml").is_file()  # the restarted recorder finished its own
+
+
+def test_domain_claims_keep_two_launches_off_one_domain(tmp_path):
+    """Issue 10, point 2 (DDS): a launch claims its ROS_DOMAIN_ID with a lock file; a claimed id is never handed to
+    a second launch on the same machine, however close together they start, and the claim goes with the monitor
+    (or the process)."""
+    pytest.importorskip("rclpy")
+    from bb2_tools import graph_monitor as G
+
+    locks = tmp_path / "locks"
+    held = [G.claim_domain(d, locks) for d in G.SAFE_DOMAIN_IDS if d != 37]
+    assert all(fd is not None for fd in held)
+    assert G.claim_domain(5, locks) is None            # held: refused, in this process too (flock per open file)
+    mon = G.free_domain_id(lock_dir=locks, listen_s=0.1)
+    try:
+        assert mon.domain_id == 37 and mon.domain_lock_fd is not None
+        with pytest.raises(S.LaunchError, match="no free ROS_DOMAIN_ID"):
+            G.free_domain_id(lock_dir=locks, listen_s=0.1)
+    finally:
+        mon.close()
+    fd = G.claim_domain(37, locks)                     # released with the monitor
+    assert fd is not None
+    for f in held + [fd]:
+        os.close(f)

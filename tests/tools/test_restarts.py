@@ -34,7 +34,7 @@ def _pid_of(node: str, mission: Path, timeout_s: float = 60.0) -> int:
                 cmd = f.read_bytes().replace(b"\0", b" ").decode(errors="replace")
             except OSError:
                 continue
-            if "launcher" not in cmd and f"'{node}'" in cmd and str(mission) in cmd:
+            if "launcher" not in cmd and re.search(rf"(\b|/|'){node}(\b|')", cmd) and str(mission) in cmd:
                 return int(f.parent.name)
         time.sleep(0.2)
     raise AssertionError(f"no {node} process for {mission}")
