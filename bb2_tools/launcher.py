@@ -178,9 +178,19 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 sup.start([n for n in sup.order if n not in first and n not in early], interrupted=interrupted)
         except LaunchError as exc:
             reason, code = f"start-up failed: {exc}", 1
+        frozen: dict[str, float] = {}  # node -> wall time it was first seen stopped
+        next_frozen_check = 0.0
         while not reason:
             report(sup.poll())
             now = time.monotonic()
+            if now >= next_frozen_check:  # a frozen node is said, and when it runs again
+                next_frozen_check = now + FROZEN_CHECK_S
+                stopped = sup.stopped()
+                for n in sorted(stopped - set(frozen)):
+                    frozen[n] = now
+                    say(f"[bb2-launch] node '{n}' is stopped (process state T: SIGSTOP or Ctrl-Z): alive, not working")
+                for n in sorted(set(frozen) - stopped):
+                    say(f"[bb2-launch] node '{n}' runs again after {now - frozen.pop(n):.1f} s stopped")
             if sup.failure:
                 reason, code = f"node '{sup.failure.name}' failed ({sup.failure.cause})", 1
             elif sup.finished:
@@ -407,6 +417,9 @@ def repair_bags(bags: Sequence[Path]) -> list[str]:
             notes.append(f"could not recover {b}: {exc}")
     return notes
 
+
+FROZEN_CHECK_S = 0.5
+"""How often (wall s) run_graph looks for stopped node processes (:meth:`Supervisor.stopped`)."""
 
 DEFAULT_STALL_TIMEOUT_S = 60.0
 """Wall seconds without the sim time advancing after which ``bb2-launch`` stops the graph as stalled (the

@@ -307,6 +307,21 @@ class Supervisor:
     def pid(self, name: str) -> int:
         return self.children[name].popen.pid
 
+    def stopped(self) -> set[str]:
+        """The running nodes with a stopped process in their process group (``/proc`` state ``T``: SIGSTOP,
+        a terminal's Ctrl-Z; ``t``: a debugger): frozen, neither dead nor working."""
+        groups = {c.popen.pid: n for n, c in self.children.items() if c.popen.poll() is None}
+        out: set[str] = set()
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            try:
+                text = stat.read_text()
+            except OSError:  # ended meanwhile
+                continue
+            fields = text[text.rfind(")") + 2:].split()
+            if len(fields) > 2 and fields[0] in ("T", "t") and int(fields[2]) in groups:
+                out.add(groups[int(fields[2])])
+        return out
+
     def last_lines(self, name: str, n: int = 20) -> list[str]:
         child = self.children.get(name)
         return list(child.ring)[-n:] if child else []

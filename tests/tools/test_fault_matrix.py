@@ -52,8 +52,8 @@ PARALLEL = 2  # cells run at once by the fixture
 def duration_s(node: str, fault: str, mode: str) -> float:
     """Sim seconds of the mission: the run still steps well after the fault (a 5 s stop of a controller in real
     time is 15 s of sim time, and the real-time loop closes a few seconds into the run)."""
-    if mode == "lockstep":
-        return 10.0
+    if mode == "lockstep":  # long enough that the probe sees the loop close before the end, even at 20x
+        return 60.0
     return 15.0 if (node, fault) == ("simulator", "SIGSTOP") else 32.0  # a frozen simulator's time stands still
 
 
@@ -335,7 +335,8 @@ def check_killed(cell: Cell) -> None:
     killed_topic = {"simulator": "/bb2/state_native", **OUTPUT}.get(n)
     if killed_topic:  # nothing of the killed node after the kill; its last message answers (or is) the last state
         assert not _published_between(cell, killed_topic, cell.fault_wall + 0.05, float("inf")), killed_topic
-        assert cell.fault_at_s <= max(cell.stamps[killed_topic]) <= st[-1]
+        # (its very last sample may die in flight with it: the mixer had it, the recorder not yet)
+        assert cell.fault_at_s - 2 * TS <= max(cell.stamps[killed_topic]) <= st[-1]
     # every state from the first recorded answer (real time starts on the failsafe until the controllers answer)
     # up to the fault was answered
     answered = set(cell.stamps["/bb2/planes/cmd"])
@@ -364,8 +365,8 @@ def check_simulator_frozen(cell: Cell) -> None:
     w = cell.walls["/bb2/state_native"]
     assert max(b - a for a, b in zip(w, w[1:])) >= STOP_S - 0.5
     last = cell.statuses[-1]
-    if cell.mode == "lockstep":  # the watchdog wakes first: at most one step on the held commands
-        assert int(last["lockstep_timeouts"]) <= 1, last
+    if cell.mode == "lockstep":  # the watchdog wakes first: a few steps on the held commands at most (one per
+        assert int(last["lockstep_timeouts"]) <= 3, last  # lockstep_timeout_s while the answers come through)
     else:  # the missed deadlines are one overrun; the schedule restarts from the resume
         assert int(last["overruns"]) >= 1, last
 
@@ -401,10 +402,24 @@ def check_controller_frozen(cell: Cell) -> None:
         assert max(cell.stamps[out]) >= max(b for _, b in holes)   # it answers again after its hole
 
 
+def check_frozen_said(cell: Cell) -> None:
+    """bb2-launch says which node is stopped, and when it runs again (once each; a node that does not hold the run
+    may still be stopped when the run ends)."""
+    n = cell.node
+    assert cell.stderr.count(f"[bb2-launch] node '{n}' is stopped (process state T") == 1, cell.stderr
+    again = re.findall(rf"\[bb2-launch\] node '{n}' runs again after ([0-9.]+) s stopped", cell.stderr)
+    assert len(again) <= 1 and all(STOP_S - 1.0 <= float(a) <= STOP_S + 2.0 for a in again), cell.stderr
+    if n == "simulator":  # it holds the run: the run goes on only once it runs again
+        assert len(again) == 1, cell.stderr
+    assert not re.search(r"node '(?!" + n + r"')\w+' is stopped", cell.stderr), cell.stderr
+
+
 @pytest.mark.parametrize("cell", CELLS, ids=["-".join(c) for c in CELLS])
 def test_fault_matrix(matrix, cell):
     c = matrix[tuple(cell)].result(timeout=1200)
     check_common(c)
+    if c.fault == "SIGSTOP":
+        check_frozen_said(c)
     if c.fault == "SIGKILL":
         check_killed(c)
     elif c.node == "simulator":
