@@ -89,6 +89,10 @@ class QosDescription:
     #: the readers' reliability when it differs from the writer's ("" = the same): a reliable writer with
     #: best-effort readers serves both kinds of subscriber (a reliable reader needs a reliable writer)
     reader_reliability: str = ""
+    #: the readers' durability when it differs from the writer's ("" = the same): a transient-local writer
+    #: serves volatile readers (our nodes: only what comes after they match) and transient-local ones (the
+    #: recorder: also the history it missed before it matched)
+    reader_durability: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         return {"reliability": self.reliability, "durability": self.durability,
@@ -106,15 +110,21 @@ QOS: dict[str, QosDescription] = {
     "sensor": QosDescription("reliable", "volatile", "keep_last", 100, reader_reliability="best_effort"),
     # commands, guidance outputs and the lockstep state: every sample matters; the writer keeps 100
     # samples so a reader that is not part of the lockstep handshake (recorder, test, tool) may lag 100
-    # steps without losing one (reliable keep-last drops unacknowledged samples beyond the depth)
-    "command": QosDescription("reliable", "volatile", "keep_last", 100),
+    # steps without losing one (reliable keep-last drops unacknowledged samples beyond the depth); written
+    # transient local, so the recorder (which asks for it) also gets the answers a controller sent before
+    # the two matched (the first steps of a loaded start), while our nodes read volatile (never an old sample)
+    "command": QosDescription("reliable", "transient_local", "keep_last", 100, reader_durability="volatile"),
     # paths are latched so a late subscriber (RViz, recorder) gets the current path
     "latched": QosDescription("reliable", "transient_local", "keep_last", 1),
     # /clock: read as rclcpp::ClockQoS (best effort, what every node's time source asks for) and written
     # reliable keep last 100 (as the sensors), which serves those readers and lets the recorder read it reliable
     "clock": QosDescription("reliable", "volatile", "keep_last", 100, reader_reliability="best_effort"),
+    # /tf as tf2_ros::DynamicBroadcasterQoS writes it (bags only: the recorder's, from /bb2/odom)
+    "tf": QosDescription("reliable", "volatile", "keep_last", 100),
     # status / diagnostics
-    "status": QosDescription("reliable", "volatile", "keep_last", 10),
+    # (written transient local as the commands: the recorder gets a node's first statuses even when it matched
+    # that node after they went out; readers ask for volatile)
+    "status": QosDescription("reliable", "transient_local", "keep_last", 10, reader_durability="volatile"),
     # the sensor models' measurements (/bb2/sensors/*): several samples of a sensor may go out in one ROM step
     # (an IMU at 200 Hz: 10 per 0.05 s), so the writer is reliable and keeps 100; a best-effort reader
     # (qos_profile_sensor_data) matches it as well as a reliable one
@@ -238,7 +248,7 @@ CONTRACT: tuple[TopicSpec, ...] = (
               "the recorder's acknowledgement, after each batch it wrote: in lockstep with recorder_ack_window > 0 "
               "the simulator steps at most that many steps ahead of it (a stalled recorder slows the graph, "
               "loses nothing)"),
-    TopicSpec("/tf", "tf2_msgs/msg/TFMessage", "command", "odom -> base_link", "m, quaternion",
+    TopicSpec("/tf", "tf2_msgs/msg/TFMessage", "tf", "odom -> base_link", "m, quaternion",
               RECORDER, (EXTERNAL,), "derived from /bb2/odom by the recorder (bags only)",
               bag_only=True),
 )
@@ -286,12 +296,13 @@ def qos_profile(name: str, *, reader: bool = False):
     else:
         desc = topic(name).qos_description
     reliability = (desc.reader_reliability or desc.reliability) if reader else desc.reliability
+    durability = (desc.reader_durability or desc.durability) if reader else desc.durability
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST if desc.history == "keep_last" else HistoryPolicy.KEEP_ALL,
         depth=desc.depth,
         reliability=(ReliabilityPolicy.RELIABLE if reliability == "reliable"
                      else ReliabilityPolicy.BEST_EFFORT),
-        durability=(DurabilityPolicy.TRANSIENT_LOCAL if desc.durability == "transient_local"
+        durability=(DurabilityPolicy.TRANSIENT_LOCAL if durability == "transient_local"
                     else DurabilityPolicy.VOLATILE),
     )
 
@@ -318,8 +329,8 @@ def contract_markdown(*, include_bag_only: bool = True) -> str:
         if t.bag_only and not include_bag_only:
             continue
         q = t.qos_description
-        qos = f"{q.reliability}, {q.durability}, {q.history} {q.depth}" + (
-            f" (readers: {q.reader_reliability})" if q.reader_reliability else "")
+        readers = ", ".join(x for x in (q.reader_reliability, q.reader_durability) if x)
+        qos = f"{q.reliability}, {q.durability}, {q.history} {q.depth}" + (f" (readers: {readers})" if readers else "")
         rows.append(f"| `{t.name}` | `{t.type}` | {qos} | {t.frame} | {t.units} | {t.publisher} | "
                     f"{', '.join(t.subscribers)} |")
     return head + "\n".join(rows) + "\n"

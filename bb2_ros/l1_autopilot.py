@@ -58,7 +58,7 @@ class L1Autopilot(Node):
         self.pub = {n: node.create_publisher(message_class(topic(n).type), n, qos_profile(n)) for n in TOPICS[3:5]}
         self.sub_rate = node.create_subscription(message_class("geometry_msgs/msg/Vector3Stamped"),
                                                  "/bb2/guidance/rate_cmd", self._on_rate,
-                                                 qos_profile("/bb2/guidance/rate_cmd"))
+                                                 qos_profile("/bb2/guidance/rate_cmd", reader=True))
         self.sub_state = subscribe_state(node, source, self._on_state)
         self.status = NodeStatus(node, "bb2/l1_autopilot", period, lambda: {
             "mission": self.mission.name, "stack": self.stack.name, "state_source": source,

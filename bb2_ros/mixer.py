@@ -42,7 +42,7 @@ class Mixer(Node):
         self.pub = node.create_publisher(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd",
                                          qos_profile("/bb2/planes/cmd"))
         self.sub = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/autopilot/vh_cmd",
-                                            self._on_vh, qos_profile("/bb2/autopilot/vh_cmd"))
+                                            self._on_vh, qos_profile("/bb2/autopilot/vh_cmd", reader=True))
         self.status = NodeStatus(node, "bb2/mixer", period, lambda: {
             "mission": self.mission.name, **{k: str(v) for k, v in self.counts.items()}})
 

@@ -508,7 +508,7 @@ def subscribe_state(node, source: str, callback: Callable[[Any, int], None]):
                 return
             callback(s, cv.seconds_to_ns(s.t))
         return node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
-                                        on_native, qos_profile("/bb2/state_native"))
+                                        on_native, qos_profile("/bb2/state_native", reader=True))
 
     def on_odom(msg):
         try:

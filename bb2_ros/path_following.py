@@ -82,7 +82,7 @@ class PathFollowing(Node):
         else:
             self.sub_path = node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"),
                                                      "/bb2/path/bernstein", self._on_path,
-                                                     qos_profile("/bb2/path/bernstein"))
+                                                     qos_profile("/bb2/path/bernstein", reader=True))
         self.sub_state = subscribe_state(node, source, self._on_state)
         self.status = NodeStatus(node, "bb2/path_following", period, lambda: {
             "mission": self.mission.name, "path_source": self.path_source, "state_source": source,

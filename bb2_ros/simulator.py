@@ -241,18 +241,19 @@ class Simulator(Node):
         self.pub = {n: pub(n) for n in TOPICS_OUT if n != "/bb2/altitude" or self.terrain is not None}
         if self.suite is not None:
             self.pub.update({n: pub(n) for n in SENSOR_TOPICS})
-        self.sub_planes = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd",
-                                                   self._locked(self._on_planes), qos_profile("/bb2/planes/cmd"))
-        self.sub_prop = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/propeller/cmd",
-                                                 self._locked(self._on_propeller), qos_profile("/bb2/propeller/cmd"))
+        def sub(type_name, name, callback):  # the readers' QoS of the contract
+            return node.create_subscription(message_class(type_name), name, self._locked(callback),
+                                            qos_profile(name, reader=True))
+
+        self.sub_planes = sub("sensor_msgs/msg/JointState", "/bb2/planes/cmd", self._on_planes)
+        self.sub_prop = sub("sensor_msgs/msg/JointState", "/bb2/propeller/cmd", self._on_propeller)
         if self.ack.enabled:
-            self.sub_ack = node.create_subscription(message_class("std_msgs/msg/Header"), "/bb2/recorder/ack",
-                                                    self._locked(self._on_ack), qos_profile("/bb2/recorder/ack"))
+            self.sub_ack = sub("std_msgs/msg/Header", "/bb2/recorder/ack", self._on_ack)
         if self.end_at_progress:
             self.sub_progress = node.create_subscription(
                 message_class("std_msgs/msg/Float64"), "/bb2/mission/progress",
                 self._locked(lambda m: setattr(self, "_path_flown", self._path_flown or m.data >= 1.0)),
-                qos_profile("/bb2/mission/progress"))
+                qos_profile("/bb2/mission/progress", reader=True))
         self.warn = Throttle(node.get_logger(), throttle_s)
         self.overruns = 0  # real time: steps later than a whole period (the stepping thread's own count)
         self._csv_fh = open(csv_path, "w", newline="") if csv_path else None

@@ -72,7 +72,7 @@ class GraphMonitor:
         self.rtf_window_s = rtf_window_s
         n = self.node
         n.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
-                              self._on_status, qos_profile("/bb2/status"))
+                              self._on_status, qos_profile("/bb2/status", reader=True))
         # /clock and the progress come once per step (hundreds per wall second in lockstep): they are not
         # spun (a Python callback each would take CPU from the graph) but polled, the latest sample only,
         # from a second node that no executor waits on.

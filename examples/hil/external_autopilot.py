@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
             except cv.ConversionError as exc:
                 log.warning(f"ignored /bb2/odom: {exc}", throttle_duration_sec=2.0)
         node.create_subscription(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", on_odom,
-                                 qos_profile("/bb2/odom"))
+                                 qos_profile("/bb2/odom", reader=True))
     else:
         def on_native(msg) -> None:
             try:
@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
             from bb2_ros.node_common import time_msg
             on_state(s, time_msg(cv.seconds_to_ns(s.t)))
         node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native", on_native,
-                                 qos_profile("/bb2/state_native"))
+                                 qos_profile("/bb2/state_native", reader=True))
 
     stop = threading.Event()
     for s in (signal.SIGINT, signal.SIGTERM):

@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     node.create_subscription(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", on_odom,
                              QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT))
     node.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status", on_status,
-                             qos_profile("/bb2/status"))
+                             qos_profile("/bb2/status", reader=True))
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, lambda *_: stop.set())
     print("hil monitor ready", flush=True)
