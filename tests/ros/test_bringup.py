@@ -8,6 +8,7 @@ Upstream tools from ../shared/ros2_tooling (tests/ros2_tooling.py; skipped with 
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -103,8 +104,13 @@ def test_ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished(ws):
     os.killpg(p.pid, signal.SIGINT)
     out = "".join(seen) + finish(p, 60)
     assert p.returncode == 0, out[-3000:]
-    assert "process has died" not in out, out[-3000:]
-    assert out.count("process has finished cleanly") == 6, out[-3000:]
+    # launch's own race on a loaded machine: SIGINT reaches the group and the simulator's exit handler stops the graph
+    # at once; asyncio's child watcher then finds a child already reaped ("Unknown child process pid N, will report
+    # returncode 255") and launch reports it died with 255 — not a node failure; anything else is
+    unreaped = set(re.findall(r"Unknown child process pid (\d+), will report returncode 255", out))
+    died = re.findall(r"process has died \[pid (\d+), exit code (-?\d+)", out)
+    assert all(pid in unreaped and code == "255" for pid, code in died), out[-3000:]
+    assert out.count("process has finished cleanly") + len(died) == 6, out[-3000:]
     assert (tmp / "interrupted" / "metadata.yaml").is_file()
     assert max(states(tmp / "interrupted")) > 0.5
 
