@@ -28,3 +28,43 @@ def spawn_node(module: str, domain_id: int, *ros_args: str) -> subprocess.Popen:
     """``python -m module --ros-args ...`` on ``domain_id``, stdout+stderr captured as text."""
     return subprocess.Popen([sys.executable, "-m", module, "--ros-args", *ros_args], cwd=REPO,
                             env=ros_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def node_pid(node: str, *must_contain: str, timeout_s: float = 60.0) -> int:
+    """The pid of a running graph node's process — any runner: the python entry point (``sys.argv[0] = 'node'``),
+    ``lib/<pkg>/<node>``, ``ros2 run`` — whose command line holds every ``must_contain`` string (its run's
+    mission file or bag folder: never another test's node); the launcher itself is never it."""
+    import re
+    import time
+
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout_s:
+        for f in Path("/proc").glob("[0-9]*/cmdline"):
+            try:
+                cmd = f.read_bytes().replace(b"\0", b" ").decode(errors="replace") + " "
+            except OSError:
+                continue
+            if "launcher" not in cmd and re.search(rf"(\b|/|'){node}(\b|')", cmd) \
+                    and all(s in cmd for s in must_contain):
+                return int(f.parent.name)
+        time.sleep(0.2)
+    raise AssertionError(f"no {node} process with {must_contain}")
+
+
+def read_until_sim_time(p: subprocess.Popen, min_sim_s: float = 0.0, timeout_s: float = 240.0) -> str:
+    """Read a running bb2-launch's stderr until its monitor line shows the sim time past ``min_sim_s`` (> 0: the
+    graph steps); returns what it printed."""
+    import re
+    import time
+
+    seen = ""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout_s:
+        line = p.stderr.readline()
+        if not line and p.poll() is not None:
+            break
+        seen += line
+        m = re.search(r"sim\s+([0-9.]+) s", line)
+        if m and float(m.group(1)) > min_sim_s:
+            return seen
+    raise AssertionError(f"the graph never passed sim time {min_sim_s:g} s:\n{seen[-3000:]}")

@@ -395,8 +395,9 @@ def check_controller_frozen(cell: Cell) -> None:
         assert 2 <= int(last["lockstep_timeouts"]) <= STOP_S / LOCKSTEP_TIMEOUT_S + 2, last
         assert not cell.holes(out, after_s=cell.fault_at_s - TS), cell.holes(out)
     else:  # the failsafe after command_timeout_s (0.5 s): planes neutral; a hole in the node's output
-        assert fs[0]["failsafe_reason"].startswith("no valid plane"), fs[0]
-        assert "planes neutral" in fs[0]["failsafe_reason"], fs[0]
+        # (the plane and the propeller commands go stale within a tick of each other: either may be said first)
+        assert fs[0]["failsafe_reason"].startswith("no valid"), fs[0]
+        assert any("planes neutral" in s["failsafe_reason"] for s in fs), [s["failsafe_reason"] for s in fs]
         holes = cell.holes(out, after_s=cell.fault_at_s - TS)
         assert holes and max(b - a for a, b in holes) >= 2.0, holes
         assert max(cell.stamps[out]) >= max(b for _, b in holes)   # it answers again after its hole

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import node_pid, read_until_sim_time, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable
@@ -39,43 +39,24 @@ STATE_TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/depth", "/bb2/altitude",
 STEP_TOPICS = ("/bb2/imu", "/bb2/planes/state", "/bb2/propeller/state")
 
 
-def _pid_of(node: str, run_dir: Path, timeout_s: float = 60.0) -> int:
-    """The pid of a graph node started by the bb2-launch that writes ``run_dir`` (from /proc cmdlines)."""
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < timeout_s:
-        for f in Path("/proc").glob("[0-9]*/cmdline"):
-            try:
-                cmd = f.read_bytes().replace(b"\0", b" ").decode(errors="replace")
-            except OSError:
-                continue
-            if "launcher" in cmd or not re.search(rf"(\b|/|'){node}(\b|')", cmd):  # any runner: python, lib, ros2
-                continue
-            if node == "recorder" and f"--out {run_dir} " not in cmd + " ":
-                continue
-            return int(f.parent.name)
-        time.sleep(0.2)
-    raise AssertionError(f"no {node} process of {run_dir}")
-
-
 def _launch(mission: Path, out: Path, *extra: str) -> subprocess.Popen:
     return subprocess.Popen([PY, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--end-at", "simulator",
                              "--timeout", "600", *extra], cwd=out.parent, env=ros_env(), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
 
 
-def _wait_stepping(p: subprocess.Popen) -> str:
-    """Read the launcher's stderr until its monitor line shows the sim time advancing; what it printed."""
-    seen = ""
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < 240:
-        line = p.stderr.readline()
-        if not line and p.poll() is not None:
-            break
-        seen += line
-        m = re.search(r"sim\s+([0-9.]+) s", line)
-        if m and float(m.group(1)) > 0:
-            return seen
-    raise AssertionError(f"the graph never stepped:\n{seen[-3000:]}")
+def _run_stopping_the_recorder(mission: Path, out: Path, *extra: str) -> tuple[int, str]:
+    """bb2-launch the mission; once it steps, SIGSTOP its recorder for 5 s; (exit code, everything it printed)."""
+    p = _launch(mission, out, *extra)
+    try:
+        seen = read_until_sim_time(p)
+        _stop_for(node_pid("recorder", f"--out {out} "), 5.0)
+        _, err = p.communicate(timeout=600)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    return p.returncode, seen + err
 
 
 def _stop_for(pid: int, seconds: float) -> None:
@@ -125,17 +106,8 @@ def test_lockstep_canyon_with_the_recorder_stopped_5_s_records_every_step_of_eve
     out = tmp_path / "canyon"
     mission = tmp_path / "canyon.yaml"  # the first 240 s of the canyon (half of it: the suite's time)
     mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nname: canyon\nduration_s: {T_CANYON_S}\n")
-    p = _launch(mission, out)
-    try:
-        seen = _wait_stepping(p)
-        _stop_for(_pid_of("recorder", out), 5.0)
-        _, err = p.communicate(timeout=600)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    err = seen + err
-    assert p.returncode == 0, err[-4000:]
+    code, err = _run_stopping_the_recorder(mission, out)
+    assert code == 0, err[-4000:]
     assert "recording complete: no gaps" in err, err[-3000:]
     status = _last_status(out)
     assert int(status["recorder_waits"]) >= 1, status          # the graph did wait for the stopped recorder
@@ -165,17 +137,8 @@ def test_realtime_recorder_stopped_5_s_the_gap_is_in_the_metadata_the_launcher_a
     params = tmp_path / "fast.yaml"
     params.write_text("simulator:\n  ros__parameters:\n    rate_hz: 100.0\n")  # 5x real time: 500 steps in 5 s
     out = tmp_path / "rt"
-    p = _launch(mission, out, "--mode", "realtime", "--params", str(params))
-    try:
-        seen = _wait_stepping(p)
-        _stop_for(_pid_of("recorder", out), 5.0)
-        _, err = p.communicate(timeout=600)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    err = seen + err
-    assert p.returncode == 0, err[-4000:]
+    code, err = _run_stopping_the_recorder(mission, out, "--mode", "realtime", "--params", str(params))
+    assert code == 0, err[-4000:]
     gaps = [g for g in _gaps(out) if g["topic"] == "/bb2/state_native" and g["after_sequence"] > 0]
     assert gaps, _gaps(out)
     lost = sum(g["missing"] for g in gaps)
@@ -209,9 +172,9 @@ def test_recorder_killed_stops_the_run_and_the_recovered_bag_tells_its_gaps(tmp_
     out = tmp_path / mode
     p = _launch(mission, out, "--mode", mode)
     try:
-        seen = _wait_stepping(p)
+        seen = read_until_sim_time(p)
         time.sleep(2.0)  # a chunk or two on disk (flushed every second)
-        os.kill(_pid_of("recorder", out), signal.SIGKILL)
+        os.kill(node_pid("recorder", f"--out {out} "), signal.SIGKILL)
         _, err = p.communicate(timeout=300)
     finally:
         if p.poll() is None:

@@ -12,32 +12,17 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import node_pid, read_until_sim_time, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable
 
 pytestmark = pytest.mark.ros
-
-
-def _pid_of(node: str, mission: Path, timeout_s: float = 60.0) -> int:
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < timeout_s:
-        for f in Path("/proc").glob("[0-9]*/cmdline"):
-            try:
-                cmd = f.read_bytes().replace(b"\0", b" ").decode(errors="replace")
-            except OSError:
-                continue
-            if "launcher" not in cmd and re.search(rf"(\b|/|'){node}(\b|')", cmd) and str(mission) in cmd:
-                return int(f.parent.name)
-        time.sleep(0.2)
-    raise AssertionError(f"no {node} process for {mission}")
 
 
 def test_path_following_restarted_mid_run_rejoins_where_the_vehicle_is(tmp_path):
@@ -52,16 +37,8 @@ def test_path_following_restarted_mid_run_rejoins_where_the_vehicle_is(tmp_path)
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     seen = ""
     try:
-        t0 = time.monotonic()
-        while time.monotonic() - t0 < 240:  # until the monitor shows the sim time past 20 s (of 90)
-            line = p.stderr.readline()
-            if not line and p.poll() is not None:
-                break
-            seen += line
-            m = re.search(r"sim\s+([0-9.]+) s", line)
-            if m and float(m.group(1)) >= 20.0:
-                break
-        os.kill(_pid_of("path_following", mission), signal.SIGKILL)
+        seen = read_until_sim_time(p, 20.0)  # killed past 20 s of the 90
+        os.kill(node_pid("path_following", str(mission)), signal.SIGKILL)
         _, err = p.communicate(timeout=600)
     finally:
         if p.poll() is None:
