@@ -26,7 +26,7 @@ from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from bb2_tools.bagfile import BagError, BagReader, Gap, bag_gaps
+from bb2_tools.bagfile import BagError, BagReader, Gap, bag_gaps, gaps_by_topic
 
 __all__ = ["AnalysisError", "Series", "StatusEntry", "BagRun", "read_bag", "USED_TOPICS"]
 
@@ -299,11 +299,8 @@ def gap_warnings(gaps: Sequence[Gap] | None, *, state_topic: str, used: Sequence
     """One warning per topic with recording gaps: every gap (where, in log time, and how long; how many
     messages), and whether the figures are affected (the state topic: they are computed over the ticks that
     remain; another topic they use: its statistics are over the samples that remain; else not affected)."""
-    by_topic: dict[str, list[Gap]] = {}
-    for g in gaps or ():
-        by_topic.setdefault(g.topic, []).append(g)
     out = []
-    for topic_name, gs in by_topic.items():
+    for topic_name, gs in gaps_by_topic(gaps or ()).items():
         if topic_name == state_topic:
             affect = "the figures are affected: computed over the ticks that remain"
         elif topic_name in used:

@@ -27,6 +27,7 @@ chunk; :class:`BagReader` reads such a truncated file up to its last complete ch
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import hashlib
 import json
@@ -45,7 +46,7 @@ from mcap.writer import CompressionType, Writer
 
 __all__ = ["BagError", "BagWriter", "BagReader", "RawMessage", "TopicInfo", "message_definition",
            "type_hash", "qos_entry", "qos_yaml", "read_metadata", "recover", "Gap", "SequenceGaps", "bag_gaps",
-           "GAPS_KEY", "SEQUENCE_KEY", "METADATA_VERSION", "ROS_DISTRO"]
+           "gaps_by_topic", "GAPS_KEY", "SEQUENCE_KEY", "METADATA_VERSION", "ROS_DISTRO"]
 
 METADATA_VERSION = 9
 ROS_DISTRO = "jazzy"
@@ -662,10 +663,14 @@ def recover(path: str | os.PathLike, out_dir: str | os.PathLike | None = None, *
         for t in infos.values():
             w.add_topic(t.name, t.type, offered_qos=t.offered_qos, type_description_hash=t.type_hash,
                         definition=definitions.get(t.type), dds_sequence=t.dds_sequence)
+        # the recorder's gaps were lost with its metadata: found again from the sequence numbers, in the same pass
+        gaps = SequenceGaps() if GAPS_KEY not in custom and any(t.dds_sequence for t in infos.values()) else None
         for m in src.raw_messages(file_order=True):
             w.write(m.topic, m.data, m.log_time_ns, m.publish_time_ns, sequence=m.sequence)
-        if GAPS_KEY not in custom and any(t.dds_sequence for t in infos.values()):  # the recorder's were lost
-            w.custom_data[GAPS_KEY] = SequenceGaps.from_reader(src).to_json()
+            if gaps is not None and infos[m.topic].dds_sequence:
+                gaps.observe_message(m)
+        if gaps is not None:
+            w.custom_data[GAPS_KEY] = gaps.to_json()
     result_dir = target
     if in_place:
         os.replace(w.mcap_path, src.mcap_path)
@@ -718,10 +723,7 @@ class Gap:
         return self.before_publish_s - self.after_publish_s
 
     def as_dict(self) -> dict[str, Any]:
-        return {"topic": self.topic, "missing": self.missing, "after_sequence": self.after_sequence,
-                "before_sequence": self.before_sequence, "after_log_s": self.after_log_s,
-                "before_log_s": self.before_log_s, "source": self.source, "after_publish_s": self.after_publish_s,
-                "before_publish_s": self.before_publish_s}
+        return dataclasses.asdict(self)
 
     def describe(self) -> str:
         who = f" (from {self.source})" if self.source else ""
@@ -801,6 +803,10 @@ class SequenceGaps:
         s[0], s[1], s[2] = seq, int(log_time_ns), pub
         return gap
 
+    def observe_message(self, m: "RawMessage") -> Gap | None:
+        """:meth:`observe` for a message read back from a bag (its MCAP sequence, log and publish times)."""
+        return self.observe(m.topic, m.sequence, m.log_time_ns, stream_source(m.type, m.data), m.publish_time_ns)
+
     @property
     def missing(self) -> int:
         return sum(g.missing for g in self.gaps)
@@ -816,8 +822,16 @@ class SequenceGaps:
         dds = [t.name for t in reader.topic_infos() if t.dds_sequence]
         if dds:
             for m in reader.raw_messages(dds, file_order=True):
-                g.observe(m.topic, m.sequence, m.log_time_ns, stream_source(m.type, m.data), m.publish_time_ns)
+                g.observe_message(m)
         return g
+
+
+def gaps_by_topic(gaps: Iterable[Gap]) -> dict[str, list[Gap]]:
+    """Gaps grouped by topic, in the order the topics first lost a message."""
+    out: dict[str, list[Gap]] = {}
+    for g in gaps:
+        out.setdefault(g.topic, []).append(g)
+    return out
 
 
 def bag_gaps(reader: "BagReader") -> list[Gap] | None:

@@ -189,7 +189,7 @@ class GraphMonitor:
     def close(self) -> None:
         import rclpy
 
-        if getattr(self, "domain_lock_fd", None) is not None:  # the domain claim goes with the monitor
+        if self.domain_lock_fd is not None:  # the domain claim goes with the monitor
             os.close(self.domain_lock_fd)
             self.domain_lock_fd = None
         self._stop.set()

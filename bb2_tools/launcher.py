@@ -364,9 +364,10 @@ stalled recorder stops the graph within half a second of sim time, far inside ev
 
 
 def gap_lines(bag: Path) -> list[str]:
-    """What a bag's recording lost, for the summary: its gaps (:func:`bb2_tools.bagfile.bag_gaps`), one line
-    each (at most 10), or that it lost nothing."""
-    from bb2_tools.bagfile import BagError, BagReader, bag_gaps
+    """What a bag's recording lost, for the summary: its gaps (:func:`bb2_tools.bagfile.bag_gaps`), one line per
+    topic (how many lost, the largest gap during the run, those before its first recorded message), or that it
+    lost nothing."""
+    from bb2_tools.bagfile import BagError, BagReader, bag_gaps, gaps_by_topic
 
     try:
         gaps = bag_gaps(BagReader(bag))
@@ -378,10 +379,7 @@ def gap_lines(bag: Path) -> list[str]:
         return ["recording complete: no gaps (every message published while recording is in the bag)"]
     lines = [f"RECORDING GAPS: {len(gaps)} gap(s), {sum(g.missing for g in gaps)} message(s) lost before "
              f"reaching the recorder (bag metadata custom_data bb2_gaps; bb2-analyze says what they affect):"]
-    by_topic: dict[str, list] = {}
-    for g in gaps:
-        by_topic.setdefault(g.topic, []).append(g)
-    for topic, gs in sorted(by_topic.items(), key=lambda kv: -sum(g.missing for g in kv[1])):
+    for topic, gs in sorted(gaps_by_topic(gaps).items(), key=lambda kv: -sum(g.missing for g in kv[1])):
         mid = [g for g in gs if not g.head]
         head = sum(g.missing for g in gs if g.head)
         text = f"  {topic}: {sum(g.missing for g in gs)} lost"

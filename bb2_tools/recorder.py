@@ -49,7 +49,8 @@ from typing import Any, Sequence
 
 from bb2_msgs_py.contract import ContractError, TopicSpec, message_class, select_topics
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
-from bb2_ros.node_common import take_all
+from bb2_msgs_py.conversions import seconds_to_ns
+from bb2_ros.node_common import take_all, time_msg
 
 ODOM_TOPIC = "/bb2/odom"
 ODOM_TYPE = "nav_msgs/msg/Odometry"
@@ -158,7 +159,6 @@ class Recorder:
         self._queue_depth = int(queue_depth)
         for spec in self.specs.values():
             self._subs.append((self._subscribe(spec), spec))
-        self._best_effort: set[str] = set()  # topics re-subscribed best effort (a best-effort publisher came)
         if self.use_sim_time and CLOCK_TOPIC not in self.specs:
             from bb2_msgs_py.contract import qos_profile
             self._subs.append((self.node.create_subscription(
@@ -174,6 +174,7 @@ class Recorder:
             self._ack_pub = self.node.create_publisher(message_class("std_msgs/msg/Header"), ACK_TOPIC,
                                                        qos_profile(ACK_TOPIC))
             self._state_type = message_class("std_msgs/msg/Float64MultiArray")
+            self._header_type = message_class("std_msgs/msg/Header")
         self.flush_period_s = float(flush_period_s)
         self._next_flush = time.monotonic() + self.flush_period_s
         self._wait_set = None
@@ -190,8 +191,7 @@ class Recorder:
 
         changed = []
         for k, (sub, spec) in enumerate(self._subs):
-            if spec is None or spec.name in self._best_effort \
-                    or sub.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
+            if spec is None or sub.qos_profile.reliability != ReliabilityPolicy.RELIABLE:  # /clock only, or done
                 continue
             try:
                 infos = self.node.get_publishers_info_by_topic(spec.name)
@@ -200,7 +200,6 @@ class Recorder:
             if any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos):
                 self._subs[k] = (self._subscribe(spec, best_effort=True), spec)
                 self.node.destroy_subscription(sub)
-                self._best_effort.add(spec.name)
                 self._wait_set = None
                 changed.append(spec.name)
                 self.node.get_logger().warning(
@@ -286,7 +285,6 @@ class Recorder:
             if seq > 0:
                 self.gaps.observe(spec.name, seq, t_ns, stream_source(spec.type, data), pub_ns)
             if self._ack_pub is not None and spec.name == STATE_TOPIC:
-                from bb2_msgs_py.conversions import seconds_to_ns
                 state_ns = seconds_to_ns(float(self._deserialize(data, self._state_type).data[0]))
                 if self._newest_state_ns is None or state_ns > self._newest_state_ns:
                     self._newest_state_ns = state_ns
@@ -299,12 +297,8 @@ class Recorder:
         """Tell the simulator which states the bag holds (after the batch is written)."""
         if self._ack_pub is None or self._newest_state_ns is None or self._newest_state_ns == self._acked_ns:
             return
-        from std_msgs.msg import Header
-
-        from bb2_ros.node_common import time_msg
-
         self._acked_ns = self._newest_state_ns
-        self._ack_pub.publish(Header(stamp=time_msg(self._acked_ns)))
+        self._ack_pub.publish(self._header_type(stamp=time_msg(self._acked_ns)))
 
     def _warn_gaps(self, *, final: bool = False) -> None:
         """Log the gaps found since the last warning (at most one warning per ``gap_warn_s`` wall s)."""
