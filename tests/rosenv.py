@@ -68,3 +68,22 @@ def read_until_sim_time(p: subprocess.Popen, min_sim_s: float = 0.0, timeout_s: 
         if m and float(m.group(1)) > min_sim_s:
             return seen
     raise AssertionError(f"the graph never passed sim time {min_sim_s:g} s:\n{seen[-3000:]}")
+
+
+def launch_with_fault(mission: Path, out: Path, *args: str, fault, min_sim_s: float = 0.0,
+                      timeout_s: float = 600.0) -> tuple[int, str]:
+    """``bb2-launch MISSION --out OUT --end-at simulator --timeout 600 ARGS``; once its sim time passes
+    ``min_sim_s``, ``fault()`` (a SIGKILL or SIGSTOP of a node); then the run to its end, at most ``timeout_s``.
+    Returns (exit code, everything it printed on stderr); the launcher is killed if the test fails meanwhile."""
+    p = subprocess.Popen([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--end-at",
+                          "simulator", "--timeout", "600", *args], cwd=out.parent, env=ros_env(),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        seen = read_until_sim_time(p, min_sim_s)
+        fault()
+        _, err = p.communicate(timeout=timeout_s)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    return p.returncode, seen + err

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-from rosenv import node_pid, read_until_sim_time, ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import launch_with_fault, node_pid, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable
@@ -39,24 +39,9 @@ STATE_TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/depth", "/bb2/altitude",
 STEP_TOPICS = ("/bb2/imu", "/bb2/planes/state", "/bb2/propeller/state")
 
 
-def _launch(mission: Path, out: Path, *extra: str) -> subprocess.Popen:
-    return subprocess.Popen([PY, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--end-at", "simulator",
-                             "--timeout", "600", *extra], cwd=out.parent, env=ros_env(), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-
-
 def _run_stopping_the_recorder(mission: Path, out: Path, *extra: str) -> tuple[int, str]:
     """bb2-launch the mission; once it steps, SIGSTOP its recorder for 5 s; (exit code, everything it printed)."""
-    p = _launch(mission, out, *extra)
-    try:
-        seen = read_until_sim_time(p)
-        _stop_for(node_pid("recorder", f"--out {out} "), 5.0)
-        _, err = p.communicate(timeout=600)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    return p.returncode, seen + err
+    return launch_with_fault(mission, out, *extra, fault=lambda: _stop_for(node_pid("recorder", f"--out {out} "), 5.0))
 
 
 def _stop_for(pid: int, seconds: float) -> None:
@@ -170,18 +155,12 @@ def test_recorder_killed_stops_the_run_and_the_recovered_bag_tells_its_gaps(tmp_
     mission = tmp_path / "straight.yaml"
     mission.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: straight_kill\nduration_s: 300\n")
     out = tmp_path / mode
-    p = _launch(mission, out, "--mode", mode)
-    try:
-        seen = read_until_sim_time(p)
+    def kill_the_recorder() -> None:
         time.sleep(2.0)  # a chunk or two on disk (flushed every second)
         os.kill(node_pid("recorder", f"--out {out} "), signal.SIGKILL)
-        _, err = p.communicate(timeout=300)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    err = seen + err
-    assert p.returncode == 1, err[-4000:]
+
+    code, err = launch_with_fault(mission, out, "--mode", mode, fault=kill_the_recorder, timeout_s=300)
+    assert code == 1, err[-4000:]
     assert re.search(r"recorder.*(SIGKILL|signal 9)", err), err[-3000:]
     assert f"recovered {out}" in err, err[-3000:]
     r = BagReader(out)

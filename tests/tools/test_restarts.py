@@ -10,17 +10,14 @@ from __future__ import annotations
 import os
 import re
 import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from rosenv import node_pid, read_until_sim_time, ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import launch_with_fault, node_pid  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
-PY = sys.executable
 
 pytestmark = pytest.mark.ros
 
@@ -32,20 +29,10 @@ def test_path_following_restarted_mid_run_rejoins_where_the_vehicle_is(tmp_path)
     mission = tmp_path / "canyon_short.yaml"
     mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nname: canyon_short\nduration_s: 90\n")
     out = tmp_path / "run"
-    p = subprocess.Popen([PY, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--end-at", "simulator",
-                          "--restart", "path_following=restart:1", "--timeout", "600"], cwd=tmp_path, env=ros_env(),
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    seen = ""
-    try:
-        seen = read_until_sim_time(p, 20.0)  # killed past 20 s of the 90
-        os.kill(node_pid("path_following", str(mission)), signal.SIGKILL)
-        _, err = p.communicate(timeout=600)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    err = seen + err
-    assert p.returncode == 0, err[-4000:]
+    code, err = launch_with_fault(  # killed past 20 s of the 90
+        mission, out, "--restart", "path_following=restart:1", min_sim_s=20.0,
+        fault=lambda: os.kill(node_pid("path_following", str(mission)), signal.SIGKILL))
+    assert code == 0, err[-4000:]
     assert re.search(r"path_following.*SIGKILL", err), err[-3000:]
     log = (out / "logs" / "path_following.log").read_text()
     m = re.search(r"joined a run under way at t = ([0-9.]+) s: virtual time set to the closest path point, "
