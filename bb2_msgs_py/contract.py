@@ -244,7 +244,8 @@ CONTRACT: tuple[TopicSpec, ...] = (
               "rate_hz per sensor; the suite and its seed", SIM, (RECORDER, EXTERNAL),
               "the sensors' mountings (the /tf_static of the suite: tf2_msgs is not in the wheels) and rates"),
     TopicSpec("/bb2/recorder/ack", "std_msgs/msg/Header", "command", "-",
-              "stamp: sim time of the newest /bb2/state_native the recorder holds", RECORDER, (SIM, RECORDER),
+              "stamp: sim time up to which the recorder holds every per-step topic of the simulator", RECORDER,
+              (SIM, RECORDER),
               "the recorder's acknowledgement, after each batch it wrote: in lockstep with recorder_ack_window > 0 "
               "the simulator steps at most that many steps ahead of it (a stalled recorder slows the graph, "
               "loses nothing)"),

@@ -15,6 +15,7 @@ Conventions (see :mod:`bb2_msgs_py.contract` and :mod:`bb2_sim.frames`, the only
 from __future__ import annotations
 
 import math
+import struct
 from functools import lru_cache
 from pathlib import Path
 from typing import Any, Sequence
@@ -69,6 +70,18 @@ def stamp_to_seconds(st) -> float:
 def stamp_to_ns(st) -> int:
     """Integer nanoseconds of a ``builtin_interfaces/Time``."""
     return st.sec * 1_000_000_000 + st.nanosec
+
+
+def leading_stamp_ns(cdr: bytes) -> int:
+    """Integer nanoseconds of the ``builtin_interfaces/Time`` a serialized message starts with (a ``std_msgs/Header``'s
+    stamp: every stamped message; ``rosgraph_msgs/Clock``), read from the CDR bytes without deserializing them:
+    after the 4-byte encapsulation header (its second byte 1: little endian, 0: big endian) come ``int32 sec`` and
+    ``uint32 nanosec``."""
+    if len(cdr) < 12 or cdr[1] not in (0, 1):
+        raise ConversionError(f"not a CDR message starting with a stamp ({len(cdr)} bytes, encapsulation "
+                              f"{bytes(cdr[:2]).hex() or 'none'})")
+    sec, nanosec = struct.unpack_from("<iI" if cdr[1] else ">iI", cdr, 4)
+    return sec * 1_000_000_000 + nanosec
 
 
 def _header(t: float, frame_id: str):

@@ -353,7 +353,7 @@ class Simulator(Node):
                 self._step(decision)
 
     def _on_ack(self, msg) -> None:
-        """The recorder holds the states up to ``msg.stamp``: a step held for it may go."""
+        """The recorder holds every per-step topic up to ``msg.stamp``: a step held for it may go."""
         self.ack.on_ack(cv.stamp_to_ns(msg.stamp))
         if self._held is not None and self._stepping():
             held, self._held = self._held, None
@@ -411,8 +411,8 @@ class Simulator(Node):
                 self._wait_said = True
                 held = "none yet" if self.ack.acked_ns is None else f"up to t = {self.ack.acked_ns * 1e-9:.3f} s"
                 self.get_logger().warning(
-                    f"step from t = {self.t:.3f} s waits for the recorder for {waited:.1f} s now (it holds the states "
-                    f"{held}, {self.ack.lag_steps(self._t_ns())} steps behind; recorder_ack_window "
+                    f"step from t = {self.t:.3f} s waits for the recorder for {waited:.1f} s now (it holds every "
+                    f"per-step topic {held}, {self.ack.lag_steps(self._t_ns())} steps behind; recorder_ack_window "
                     f"{self.ack.window_steps}; given up on after recorder_ack_timeout_s {self.ack.timeout_s:g} s)")
             if self.ack.expired(time.monotonic()):
                 self.get_logger().warning(

@@ -22,9 +22,12 @@ Nothing lost silently: every message is written with its DDS publication sequenc
 that never arrived: a best-effort sample dropped, a reliable one pushed out of the writer's history while the
 recorder was stalled) is logged as it is found and written into the bag's ``custom_data`` (``bb2_gaps``, a JSON
 list: topic, missing, sequence numbers and log times either side; :class:`bb2_tools.bagfile.Gap`).  After each
-batch holding a ``/bb2/state_native``, the recorder publishes ``/bb2/recorder/ack`` (``std_msgs/Header``, stamp =
-the newest state it holds): a lockstep simulator with ``recorder_ack_window`` waits for it, so a stalled
-recorder slows the graph instead of losing messages.
+batch, the recorder publishes ``/bb2/recorder/ack`` (``std_msgs/Header``): the stamp up to which it holds every
+topic the simulator publishes each step (``/bb2/state_native``, ``/clock`` and the simulator's sensor topics: the
+oldest of their newest stamps, :class:`StepAcks`).  A lockstep simulator with ``recorder_ack_window`` waits for it,
+so a stalled recorder slows the graph instead of losing messages -- on every per-step topic: a reliable topic
+whose samples the stall pushed out of the transport comes back only when its writer repairs it (a heartbeat
+later), and the simulator must not outrun its writer history meanwhile.
 
 Stopping: SIGINT or SIGTERM finish the bag (summary, ``rosbag2`` metadata record, metadata.yaml)
 and exit 0.  A SIGKILL loses at most the open chunk (``--chunk-size`` bytes, or
@@ -47,9 +50,9 @@ import time
 from pathlib import Path
 from typing import Any, Sequence
 
-from bb2_msgs_py.contract import ContractError, TopicSpec, message_class, select_topics
+from bb2_msgs_py.contract import SIM, ContractError, TopicSpec, message_class, select_topics
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
-from bb2_msgs_py.conversions import seconds_to_ns
+from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros.node_common import take_all, time_msg
 
 ODOM_TOPIC = "/bb2/odom"
@@ -116,6 +119,38 @@ def tf_cdr_from_odometry_cdr(data: bytes) -> bytes:
     return encode(tf_from_odometry(deserialize(data, odometry)))
 
 
+def step_topics(topics: Sequence[TopicSpec]) -> set[str]:
+    """The topics of ``topics`` the simulator publishes once per step: ``/bb2/state_native``, ``/clock`` and its
+    sensor topics (odometry, IMU, depth, altitude, plane and propeller states; not the sensor suite's
+    measurements, which come at their own rates)."""
+    return {t.name for t in topics if t.name == STATE_TOPIC or (t.publisher == SIM and t.qos in ("sensor", "clock"))}
+
+
+class StepAcks:
+    """What the recorder acknowledges: the newest stamp of each per-step topic it received, and the oldest of
+    those (the step up to which the bag holds every per-step topic that has begun).  Acknowledgements only go
+    forward; a topic counts from its first message on."""
+
+    def __init__(self, topics: set[str]) -> None:
+        self.topics = frozenset(topics)
+        self.newest_ns: dict[str, int] = {}
+        self.acked_ns: int | None = None
+
+    def received(self, topic: str, stamp_ns: int) -> None:
+        if stamp_ns > self.newest_ns.get(topic, -1):
+            self.newest_ns[topic] = int(stamp_ns)
+
+    def next_ack(self) -> int | None:
+        """The stamp to acknowledge now, or None (nothing new since the last)."""
+        if not self.newest_ns:
+            return None
+        ack = min(self.newest_ns.values())
+        if self.acked_ns is not None and ack <= self.acked_ns:
+            return None
+        self.acked_ns = ack
+        return ack
+
+
 def subscription_qos(spec: TopicSpec, depth: int, *, best_effort: bool = False):
     """The recorder's request: what the contract's writers offer (reliable where they write reliable, as rosbag2
     subscribes with the publishers' QoS: a stalled recorder gets the samples again from the writers' histories),
@@ -167,8 +202,7 @@ class Recorder:
         self.gaps = SequenceGaps()
         self._gap_warn_s, self._gap_warned_wall, self._gaps_warned = float(gap_warn_s), -math.inf, 0
         self._ack_pub = None
-        self._acked_ns: int | None = None
-        self._newest_state_ns: int | None = None
+        self.acks = StepAcks(step_topics(topics))
         if acknowledge and STATE_TOPIC in self.specs:
             from bb2_msgs_py.contract import qos_profile
             self._ack_pub = self.node.create_publisher(message_class("std_msgs/msg/Header"), ACK_TOPIC,
@@ -247,8 +281,7 @@ class Recorder:
         taken.sort(key=lambda m: (m[0], m[1]))
         for _recv, _k, spec, data, info in taken:
             if self.use_sim_time and (spec is None or spec.name == CLOCK_TOPIC):
-                stamp = self._deserialize(data, self._clock_type).clock
-                self._sim_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+                self._sim_ns = leading_stamp_ns(data)
             if spec is not None:
                 self._on_message(spec, data, info)
         self._acknowledge()
@@ -284,21 +317,27 @@ class Recorder:
                            else None)
             if seq > 0:
                 self.gaps.observe(spec.name, seq, t_ns, stream_source(spec.type, data), pub_ns)
-            if self._ack_pub is not None and spec.name == STATE_TOPIC:
-                state_ns = seconds_to_ns(float(self._deserialize(data, self._state_type).data[0]))
-                if self._newest_state_ns is None or state_ns > self._newest_state_ns:
-                    self._newest_state_ns = state_ns
+            if self._ack_pub is not None and spec.name in self.acks.topics:
+                self.acks.received(spec.name, self._step_stamp_ns(spec.name, data))
             if self.tf_from_odom and spec.name == ODOM_TOPIC:
                 if TF_TOPIC not in self.bag.topics:
                     self.bag.add_topic(TF_TOPIC, TF_TYPE, offered_qos=[TF_QOS])
                 self.bag.write(TF_TOPIC, tf_cdr_from_odometry_cdr(data), t_ns, pub_ns)
 
+    def _step_stamp_ns(self, topic: str, data: bytes) -> int:
+        """The step a per-step message belongs to: the state's time (its first element), else the stamp the
+        message starts with (header stamp, clock)."""
+        if topic == STATE_TOPIC:
+            return seconds_to_ns(float(self._deserialize(data, self._state_type).data[0]))
+        return leading_stamp_ns(data)
+
     def _acknowledge(self) -> None:
-        """Tell the simulator which states the bag holds (after the batch is written)."""
-        if self._ack_pub is None or self._newest_state_ns is None or self._newest_state_ns == self._acked_ns:
+        """Tell the simulator up to which step the bag holds every per-step topic (after the batch is written)."""
+        if self._ack_pub is None:
             return
-        self._acked_ns = self._newest_state_ns
-        self._ack_pub.publish(self._header_type(stamp=time_msg(self._acked_ns)))
+        ack = self.acks.next_ack()
+        if ack is not None:
+            self._ack_pub.publish(self._header_type(stamp=time_msg(ack)))
 
     def _warn_gaps(self, *, final: bool = False) -> None:
         """Log the gaps found since the last warning (at most one warning per ``gap_warn_s`` wall s)."""

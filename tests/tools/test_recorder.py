@@ -273,3 +273,47 @@ def test_tf_from_odometry_cdr_equals_the_dynamic_encoder(frame_id, child):
     assert tf_cdr_from_odometry_cdr(serialize_message(_fixed_odometry(frame_id, child))) == want
     with pytest.raises(RuntimeError, match="deserialize"):
         tf_cdr_from_odometry_cdr(b"\x00\x00\x00\x00" + serialize_message(odom)[4:])
+
+
+def test_leading_stamp_ns_reads_the_stamp_of_every_stamped_message_and_the_clock():
+    """The recorder reads the per-step stamps from the CDR bytes: the same nanoseconds rclpy's deserializer gives
+    for the simulator's stamped messages and /clock, little and big endian; bytes that cannot hold a stamp raise."""
+    from rclpy.serialization import serialize_message
+
+    state = VehicleState.from_vector(4321.987654321, np.arange(12) * 0.1)
+    msgs = [conv.state_to_odometry(state), conv.imu_message(state, np.array([0.0, 0.0, 9.81])),
+            conv.depth_message(12.345678901, 50.0), conv.planes_message(3.05, np.zeros(5)),
+            conv.clock_message(2**31 - 1.5)]
+    for msg in msgs:
+        st = msg.clock if hasattr(msg, "clock") else msg.header.stamp
+        assert conv.leading_stamp_ns(serialize_message(msg)) == conv.stamp_to_ns(st) > 0, type(msg)
+    big = b"\x00\x00\x00\x00" + (7).to_bytes(4, "big") + (250_000_000).to_bytes(4, "big")
+    assert conv.leading_stamp_ns(big) == 7_250_000_000
+    for bad in (b"", b"\x00\x01\x00\x00\x07", b"\x00\x07\x00\x00" + bytes(8)):
+        with pytest.raises(conv.ConversionError, match="not a CDR message starting with a stamp"):
+            conv.leading_stamp_ns(bad)
+
+
+def test_the_recorder_acknowledges_the_oldest_newest_stamp_of_the_per_step_topics():
+    """The ack is the step up to which every per-step topic that has begun is held: a sensor topic lagging (its
+    samples held back by the transport while the state came through) holds it back; it only goes forward."""
+    from bb2_msgs_py.contract import CONTRACT
+    from bb2_tools.recorder import StepAcks, step_topics
+
+    topics = step_topics(CONTRACT)
+    assert {"/bb2/state_native", "/clock", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
+            "/bb2/planes/state", "/bb2/propeller/state"} == topics
+    acks = StepAcks(topics)
+    assert acks.next_ack() is None
+    acks.received("/bb2/state_native", 100)
+    assert acks.next_ack() == 100
+    acks.received("/bb2/imu", 50)                     # begins behind: cannot take the ack back
+    assert acks.next_ack() is None
+    for k in range(2, 6):
+        acks.received("/bb2/state_native", 100 * k)
+    acks.received("/bb2/imu", 150)
+    assert acks.next_ack() == 150 and acks.next_ack() is None   # the IMU holds it back; once said, nothing new
+    acks.received("/bb2/imu", 450)
+    assert acks.next_ack() == 450
+    acks.received("/bb2/imu", 400)                    # an older one (a re-send) changes nothing
+    assert acks.next_ack() is None and acks.newest_ns["/bb2/imu"] == 450
