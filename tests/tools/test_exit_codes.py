@@ -321,11 +321,18 @@ def test_mission_refuses_impossible_starts_and_bad_files(tmp_path):
     assert not (tmp_path / "bags").exists()
 
 
+def _sigint_as_from_a_terminal() -> None:
+    """The child's SIGINT at its default action, as in a terminal: a test run started as a background job (``&``
+    in a script, as CI harnesses do) hands its children SIGINT ignored, and Python then installs no
+    KeyboardInterrupt handler: the Ctrl-C under test would not reach the program at all."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_exits_130_after_flushing_the_csv(tmp_path):
     csv = tmp_path / "tc.csv"
     p = subprocess.Popen([PY, "-m", "bb2_tools.sim_cli", "maneuver", "turning-circle", "--duration", "5000",
                           "--out", str(csv)], cwd=tmp_path, env=ros_env(), stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
+                         stderr=subprocess.PIPE, text=True, preexec_fn=_sigint_as_from_a_terminal)
     t0 = time.monotonic()  # Ctrl-C while the run writes rows (a slow start on a loaded machine: wait for it)
     while time.monotonic() - t0 < 300 and p.poll() is None and (not csv.exists() or csv.stat().st_size < 20000):
         time.sleep(0.2)
