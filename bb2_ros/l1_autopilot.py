@@ -29,7 +29,7 @@ from bb2_msgs_py.contract import message_class, qos_profile, topic
 from bb2_mission.components import build_mission_stack
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, declare, mission_only,
                                  require_choice, require_positive, require_rate_stack, run_node, subscribe_state,
-                                 time_msg)
+                                 time_msg, node_options)
 
 TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd",
           "/bb2/propeller/cmd", "/bb2/status")
@@ -38,7 +38,7 @@ KEEP = 20  # pending inputs kept per kind (stamps not yet paired)
 
 class L1Autopilot(Node):
     def __init__(self, argv: Sequence[str]):
-        super().__init__("l1_autopilot")
+        super().__init__("l1_autopilot", **node_options())
         node = self
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         source = require_choice("state_source", declare(

@@ -21,14 +21,14 @@ from bb2_msgs_py.contract import message_class, qos_profile
 
 from bb2_mission.components import build_mixer
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, declare, mission_only,
-                                 require_positive, run_node)
+                                 require_positive, run_node, node_options)
 
 TOPICS = ("/bb2/autopilot/vh_cmd", "/bb2/planes/cmd", "/bb2/status")
 
 
 class Mixer(Node):
     def __init__(self, argv: Sequence[str]):
-        super().__init__("mixer")
+        super().__init__("mixer", **node_options())
         node = self
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         period = require_positive("status_period_s", declare(node, "status_period_s", 1.0,

@@ -5,7 +5,8 @@ messages out.  This module holds
 what every shell needs and nothing numerical:
 
 * :func:`run_node` -- ``rclpy.init(args=args)``, build the node, spin until SIGINT/SIGTERM, exit 0;
-  a malformed params file, parameter or mission gives one clear line on stderr and exit status 2.
+  a malformed params file, parameter or mission gives one clear line on stderr and exit status 2;
+  :func:`run_nodes` the same for several nodes in one process (the container, :mod:`bb2_ros.container`).
 * :func:`declare` -- a parameter with its description (``ParameterDescriptor``), so
   ``--ros-args --params-file F.yaml`` and ``-p name:=value`` apply as usual.
 * :func:`check_remaps` -- a ``-r from:=to`` rule that names no topic of the node is reported (or is
@@ -325,6 +326,31 @@ def _node_of(shell):
     return shell if isinstance(shell, Node) else shell.node
 
 
+_node_options: dict[str, Any] = {}  # what the node being built passes to rclpy's Node (see node_options)
+
+
+def node_options() -> dict[str, Any]:
+    """Keyword arguments for ``rclpy.node.Node.__init__`` of the node being built: none in a process of its own
+    (the node reads the process's ROS arguments); in a container (:func:`run_nodes` with ``composed``), its own
+    ROS arguments as ``cli_args`` and not the process's (``use_global_arguments=False``), so each composed node
+    gets exactly the parameters and remaps it would get alone."""
+    return dict(_node_options)
+
+
+def ros_arguments(argv: Sequence[str]) -> list[str]:
+    """The arguments inside the ``--ros-args`` scopes of ``argv`` (each scope ends at ``--`` or the end)."""
+    out: list[str] = []
+    in_ros = False
+    for a in argv:
+        if a == "--ros-args":
+            in_ros = True
+        elif a == "--":
+            in_ros = False
+        elif in_ros:
+            out.append(a)
+    return out
+
+
 def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str] | None = None) -> int:
     """Init rclpy with ``args`` (``sys.argv`` when None), build ``factory(argv)``, spin until SIGINT/SIGTERM.
 
@@ -333,47 +359,63 @@ def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str]
     Exit status: 0 clean stop, 2 bad params file / parameter / mission, 1 runtime error (e.g. the
     simulation diverged).
     """
+    argv = list(sys.argv if args is None else args)
+    return run_nodes(name, [(name, factory, argv)], argv)
+
+
+def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any], list[str]]],
+              init_args: Sequence[str], *, composed: bool = False) -> int:
+    """:func:`run_node` for several nodes in one process and one executor: ``nodes`` are ``(name, factory,
+    argv)``, built in order; rclpy is initialised with ``init_args``.  ``composed``: each node reads the ROS
+    arguments of its own ``argv`` only (:func:`node_options`).  Spins until SIGINT/SIGTERM or until any node is
+    ``done``; the exit status is the worst of the nodes' (2 > 1 > 0).  A node that cannot be built stops the
+    process before it spins (exit 2, one line naming the node)."""
     from bb2_msgs_py.ros_env import ros_environment_or_error
 
-    if (bad := ros_environment_or_error(name)) is not None:  # called directly from the venv: find ROS itself
+    if (bad := ros_environment_or_error(process)) is not None:  # called directly from the venv: find ROS itself
         return bad
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    argv = list(sys.argv if args is None else args)
-    global _node_argv
-    _node_argv = argv
+    global _node_argv, _node_options
     try:
-        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(args=list(init_args), signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl's own message names the bad params file / argument
-        _error(name, f"cannot start ROS (bad --ros-args or params file?): {exc}")
+        _error(process, f"cannot start ROS (bad --ros-args or params file?): {exc}")
         return EXIT_BAD_INPUT
     stop = threading.Event()
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
-    shell = None
+    shells: list[Any] = []
     code = EXIT_OK
     try:
-        try:
-            shell = factory(argv)
-        except NodeConfigError as exc:
-            _error(name, str(exc))
-            return EXIT_BAD_INPUT
+        for name, factory, argv in nodes:
+            _node_argv = list(argv)
+            _node_options = ({"cli_args": ["--ros-args", *ros_arguments(argv)], "use_global_arguments": False}
+                             if composed else {})
+            try:
+                shells.append(factory(list(argv)))
+            except NodeConfigError as exc:
+                _error(name, str(exc))
+                return EXIT_BAD_INPUT
+            finally:
+                _node_options = {}
         executor = make_executor()
-        executor.add_node(_node_of(shell))
+        for shell in shells:
+            executor.add_node(_node_of(shell))
         profiler = _profiler()
         try:
-            while not stop.is_set() and rclpy.ok() and not getattr(shell, "done", False):
+            while not stop.is_set() and rclpy.ok() and not any(getattr(sh, "done", False) for sh in shells):
                 executor.spin_once(timeout_sec=0.1)
         finally:
             if profiler is not None:
                 profiler.disable()
-                profiler.dump_stats(os.path.join(os.environ["BB2_PROFILE_DIR"], f"{name}-{os.getpid()}.prof"))
-        code = int(getattr(shell, "exit_code", EXIT_OK))
+                profiler.dump_stats(os.path.join(os.environ["BB2_PROFILE_DIR"], f"{process}-{os.getpid()}.prof"))
+        code = max((int(getattr(sh, "exit_code", EXIT_OK)) for sh in shells), default=EXIT_OK)
     except Exception as exc:
-        _error(name, f"{type(exc).__name__}: {exc}")
+        _error(process, f"{type(exc).__name__}: {exc}")
         code = EXIT_RUNTIME_ERROR
     finally:
-        if shell is not None:
+        for shell in shells:
             try:
                 if hasattr(shell, "close"):
                     shell.close()

@@ -38,7 +38,7 @@ from bb2_msgs_py.contract import message_class, qos_profile, topic
 from bb2_mission.components import build_mission_stack
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, declare, mission_only,
                                  require_choice, require_positive, require_rate_stack, run_node, subscribe_state,
-                                 time_msg)
+                                 time_msg, node_options)
 
 PROGRESS_SAMPLES = 2001  # arc-length table for the progress (linear interpolation: < 1e-4 m on the shipped paths)
 TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/path/bernstein", "/bb2/guidance/rate_cmd",
@@ -51,7 +51,7 @@ REJOIN_AFTER_S = 1e-6
 
 class PathFollowing(Node):
     def __init__(self, argv: Sequence[str]):
-        super().__init__("path_following")
+        super().__init__("path_following", **node_options())
         node = self
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         source = require_choice("state_source", declare(

@@ -17,14 +17,14 @@ from rclpy.node import Node
 from bb2_msgs_py import conversions as cv
 from bb2_msgs_py.contract import message_class, qos_profile, topic
 from bb2_ros.node_common import (NodeConfigError, NodeStatus, check_remaps, declare, mission_only,
-                                 require_positive, run_node)
+                                 require_positive, run_node, node_options)
 
 TOPICS = ("/bb2/path", "/bb2/path/bernstein", "/bb2/status")
 
 
 class Planner(Node):
     def __init__(self, argv: Sequence[str]):
-        super().__init__("planner")
+        super().__init__("planner", **node_options())
         node = self
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         n = int(declare(node, "path_samples", 1001, "number of samples published on /bb2/path (>= 2)"))

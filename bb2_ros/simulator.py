@@ -111,7 +111,7 @@ from bb2_sim.sensors.truth import truth_from_step
 from bb2_sim.state import VehicleState
 
 from bb2_ros.node_common import (NodeConfigError, Throttle, build_piece, check_remaps, declare, mission_only,
-                                 require_choice, require_positive, run_node)
+                                 require_choice, require_positive, run_node, node_options)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics")
@@ -127,7 +127,7 @@ class Simulator(Node):
     """The simulator node: parameters, publishers, the lockstep/real-time stepping and the status."""
 
     def __init__(self, argv: Sequence[str]):
-        super().__init__("simulator")
+        super().__init__("simulator", **node_options())
         node = self
         self._lock = threading.RLock()  # real time: the stepping thread vs the executor's callbacks
         self.scheduling = "normal"  # of the real-time stepping thread (status)

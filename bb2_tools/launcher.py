@@ -1,4 +1,4 @@
-"""bb2-launch: fly a mission through the BB2 ROS 2 node graph, one process per node.
+"""bb2-launch: fly a mission through the BB2 ROS 2 node graph, one process per node (or composed).
 
 The launcher starts every node at once (their imports and mission builds overlap): in lockstep the
 simulator publishes its first state only once the recorder reads every topic it publishes, then waits
@@ -15,6 +15,12 @@ the simulator reports that it stopped (diverged), on Ctrl-C (SIGINT) or SIGTERM,
 after grace periods; the recorder is stopped last and gets the longest grace so it finishes its
 bag.  A node that dies is reported with its exit code or signal and its last log lines, and is
 handled by its restart policy (``--restart NODE=stop|restart[:N]|ignore``; default ``stop``).
+
+Composition (``--compose``, ``--group NODE,NODE``): nodes run in one process and one executor
+(:mod:`bb2_ros.container`), each with the parameters, remaps and topics it has alone; the recorder always runs in a
+process of its own.  A composed process is started, restarted (``--restart container=...``; refused while it holds
+the simulator), stopped and reported by its name: ``container`` for all the composable nodes, else its nodes
+joined by ``+`` (``path_following+l1_autopilot+mixer``).
 
 Every child's stdout and stderr go to ``<run>/logs/<node>.log`` (and a ring buffer of the last
 lines).  ``<run>`` is the bag directory ``<bag-dir>/<mission>_<YYYYmmdd_HHMMSS>/`` (metadata.yaml
@@ -215,7 +221,8 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 break
             if monitor is not None and (tty or now - last_status >= status_period_s):
                 line = format_status(monitor.sim_time_s, monitor.progress, monitor.rtf(),
-                                     len(sup.running()), len(sup.order), now - t0)
+                                     sum(sup.specs[n].nodes for n in sup.running()),
+                                     sum(sup.specs[n].nodes for n in sup.order), now - t0)
                 if tty:
                     print("\r\033[K" + line, end="", file=out, flush=True)
                 else:
@@ -295,10 +302,59 @@ machine with fewer cores than busy processes they take the CPU the loop leaves (
 absorb the delay; the planner only publishes the path), not the loop's."""
 
 
+CONTAINER = GraphNode("container", "bb2_ros", "container", "bb2_ros.container:main")
+"""The process that runs several nodes composed (:mod:`bb2_ros.container`)."""
+COMPOSABLE = ("planner", "path_following", "l1_autopilot", "mixer", "simulator")
+"""The nodes ``--compose`` may put into one process (the recorder waits on its own wait set: a process of its own)."""
+
+
+def compose_groups(groups: Sequence[str] | None) -> list[tuple[str, ...]]:
+    """The process groups of a composed launch: ``groups`` are comma-separated node names (``--group``), each one
+    process; ``[]`` (``--compose`` alone) puts every composable node into one.  Nodes in no group run alone.
+    Unknown, repeated or non-composable names are a :class:`LaunchError`."""
+    if groups is None:
+        return []
+    if not groups:
+        return [COMPOSABLE]
+    out: list[tuple[str, ...]] = []
+    seen: set[str] = set()
+    for g in groups:
+        names = tuple(n.strip() for n in g.split(",") if n.strip())
+        if not names:
+            raise LaunchError(f"--group {g!r}: no node named")
+        for n in names:
+            if n == RECORDER_NODE_NAME:
+                raise LaunchError("--group: the recorder cannot be composed (it waits on its own wait set); it "
+                                  "runs in a process of its own")
+            if n not in COMPOSABLE:
+                raise LaunchError(f"--group: unknown node {n!r}; composable: {', '.join(COMPOSABLE)}")
+            if n in seen:
+                raise LaunchError(f"--group: node {n!r} is in two groups")
+            seen.add(n)
+        out.append(tuple(sorted(names, key=COMPOSABLE.index)))
+    return out
+
+
+def process_name(group: Sequence[str]) -> str:
+    """The name of the process that runs ``group`` (its log file, its restart policy, its reports): the node's
+    own for a node alone, ``container`` for every composable node, else the nodes joined by ``+``."""
+    if len(group) == 1:
+        return group[0]
+    return CONTAINER.name if tuple(group) == COMPOSABLE else "+".join(group)
+
+
+def process_names(groups: Sequence[Sequence[str]]) -> list[str]:
+    """Every process of the graph for these groups (the recorder included), in the node table's order."""
+    grouped = {n for g in groups for n in g}
+    names = [process_name(g) for g in groups]
+    return [n.name for n in GRAPH_NODES if n.name not in grouped] + names
+
+
 def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params: Path | None = None,
                 record: bool = True, runner: str = "auto",
                 policies: Mapping[str, RestartPolicy] | None = None,
-                monitor: GraphMonitor | None = None) -> list[ProcessSpec]:
+                monitor: GraphMonitor | None = None,
+                groups: Sequence[Sequence[str]] = ()) -> list[ProcessSpec]:
     """The process specs of the BB2 graph for one mission, in start order.
 
     The planner and the controllers, and in lockstep the simulator, are ``early``: :func:`run_graph`
@@ -309,35 +365,23 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     controllers (re-sending the state until they answer).  Without a recorder the simulator starts at
     once.  In real time the simulator starts last, once the recorder is ready (it steps on the wall
     clock from its first tick, on the failsafe until commands arrive).  ``monitor`` gives the recorder
-    its readiness probe.
+    its readiness probe.  ``groups`` (:func:`compose_groups`): nodes composed into one process each
+    (:mod:`bb2_ros.container`, every node with the arguments it has alone); such a process starts, finishes
+    the graph, restarts and is reported as the nodes it holds would be.
     """
     from bb2_msgs_py.contract import select_topics
 
     if mode not in ("lockstep", "realtime"):
         raise LaunchError(f"--mode must be lockstep or realtime, got {mode!r}")
     policies = dict(policies or {})
-    specs: list[ProcessSpec] = []
-    for node in GRAPH_NODES:
-        base = node_command(node, runner)
-        policy = policies.get(node.name, RestartPolicy())
-        if node.name == "recorder":
-            if not record:
-                continue
-            topics = [t.name for t in select_topics()]
 
-            def rec_cmd(attempt: int, base=base) -> list[str]:
-                out = run_dir if attempt == 0 else run_dir.with_name(f"{run_dir.name}_r{attempt}")
-                return [*base, "--out", str(out), "--overwrite", "--use-sim-time"]
-
-            ready = (lambda m=monitor, t=topics: m.subscribed(RECORDER_NODE_NAME, t)) if monitor else None
-            specs.append(ProcessSpec(node.name, rec_cmd, policy, stop_stage=1, sigint_grace_s=30.0,
-                                     sigterm_grace_s=10.0, ready=ready, nice=BACKGROUND_NICE))
-            continue
+    def node_args(name: str, attempt: int) -> list[str]:
+        """The ROS arguments of node ``name`` (``attempt`` > 0: a restart, which rejoins the run)."""
         # The params file goes first: for '/**' keys the last source wins, so the launcher's own -p values
         # (mission, time mode, sim time) must come after it.
         ros = ["--ros-args"] + (["--params-file", str(params)] if params is not None else [])
         ros += ["-p", f"mission_file:={mission}"]
-        if node.name == "simulator":
+        if name == "simulator":
             ros += ["-p", f"time_mode:={mode}"]
             if record:  # the bag misses nothing from the first step on (its readers matched first)
                 ros += ["-p", "wait_for_readers:=true"]
@@ -345,15 +389,45 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 ros += ["-p", f"recorder_ack_window:={RECORDER_ACK_WINDOW}"]
         else:
             ros += ["-p", "use_sim_time:=true"]
-        argv = [*base, *ros]
+        if attempt > 0 and name in REJOINING:  # a node with state along the run joins the run where it stands
+            ros += ["-p", f"{REJOINING[name]}:=true"]
+        return ros
 
-        def command(attempt: int, argv=argv, flag=REJOINING.get(node.name)) -> list[str]:
-            """A restarted attempt of a node with state along the run joins the run where it stands."""
-            return argv + (["-p", f"{flag}:=true"] if flag and attempt > 0 else [])
+    grouped = {n: g for g in groups for n in g}
+    specs: list[ProcessSpec] = []
+    for node in GRAPH_NODES:
+        if node.name == "recorder":
+            if not record:
+                continue
+            base = node_command(node, runner)
+            topics = [t.name for t in select_topics()]
 
-        specs.append(ProcessSpec(node.name, command, policy, finishes_graph=node.name == "simulator",
-                                 nice=BACKGROUND_NICE if node.name in BACKGROUND_NODES else 0,
-                                 early=node.name != "simulator" or mode == "lockstep"))
+            def rec_cmd(attempt: int, base=base) -> list[str]:
+                out = run_dir if attempt == 0 else run_dir.with_name(f"{run_dir.name}_r{attempt}")
+                return [*base, "--out", str(out), "--overwrite", "--use-sim-time"]
+
+            ready = (lambda m=monitor, t=topics: m.subscribed(RECORDER_NODE_NAME, t)) if monitor else None
+            specs.append(ProcessSpec(node.name, rec_cmd, policies.get(node.name, RestartPolicy()), stop_stage=1,
+                                     sigint_grace_s=30.0, sigterm_grace_s=10.0, ready=ready, nice=BACKGROUND_NICE))
+            continue
+        group = grouped.get(node.name, (node.name,))
+        if node.name != group[-1]:  # a composed process is added with its last node (start order: the simulator's)
+            continue
+        if len(group) == 1:
+            base = node_command(node, runner)
+
+            def command(attempt: int, base=base, name=node.name) -> list[str]:
+                return [*base, *node_args(name, attempt)]
+        else:
+            base = node_command(CONTAINER, runner)
+
+            def command(attempt: int, base=base, group=group) -> list[str]:
+                return [*base, *(a for n in group for a in ("--node", n, *node_args(n, attempt), "--"))]
+        name = process_name(group)
+        specs.append(ProcessSpec(name, command, policies.get(name, RestartPolicy()),
+                                 finishes_graph="simulator" in group,
+                                 nice=BACKGROUND_NICE if set(group) <= set(BACKGROUND_NODES) else 0,
+                                 early="simulator" not in group or mode == "lockstep", nodes=len(group)))
     first = [s for s in specs if s.ready is not None]
     return first + [s for s in specs if s.ready is None]
 
@@ -437,12 +511,15 @@ NOT_RESTARTABLE = {
 """Nodes whose ``restart`` policy is refused up front, and why (one line each)."""
 
 
-def check_restart_policies(policies: Mapping[str, RestartPolicy]) -> None:
-    """Refuse, before anything starts, a restart policy that could not rejoin the run (:data:`NOT_RESTARTABLE`)."""
+def check_restart_policies(policies: Mapping[str, RestartPolicy], groups: Sequence[Sequence[str]] = ()) -> None:
+    """Refuse, before anything starts, a restart policy that could not rejoin the run (:data:`NOT_RESTARTABLE`),
+    also for a composed process holding such a node (it restarts as a whole)."""
     for name, why in NOT_RESTARTABLE.items():
-        pol = policies.get(name)
+        group = next((g for g in groups if name in g), (name,))
+        pol = policies.get(process_name(group))
         if pol is not None and pol.action == "restart":
-            raise LaunchError(f"--restart: restarting the {name} is refused: {why}")
+            where = "" if len(group) == 1 else f" (composed in '{process_name(group)}', which restarts as a whole)"
+            raise LaunchError(f"--restart: restarting the {name}{where} is refused: {why}")
 
 
 def _parse(argv: Sequence[str]) -> argparse.Namespace:
@@ -474,6 +551,12 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     p.add_argument("--ready-timeout", type=float, default=60.0,
                    help="seconds to wait for the recorder's subscriptions and (lockstep) the simulator's "
                         "publishers (default 60)")
+    p.add_argument("--compose", action="store_true",
+                   help="compose the nodes into one process ('container': planner, controllers and simulator in "
+                        "one executor; the recorder in its own process); see --group")
+    p.add_argument("--group", action="append", default=None, metavar="NODE,NODE[,...]",
+                   help="with or without --compose: these nodes composed into one process (repeatable; nodes in "
+                        "no group run alone), e.g. --group path_following,l1_autopilot,mixer")
     p.add_argument("--runner", choices=RUNNERS, default="auto", help="how nodes are started (default auto)")
     p.add_argument("--echo", action="store_true", help="also print every node's output, prefixed")
     p.add_argument("--install-ros-ws", action="store_true",
@@ -513,14 +596,15 @@ def _main(argv: Sequence[str] | None) -> int:
             raise LaunchError(f"--stall-timeout must be >= 0 and finite, got {args.stall_timeout}")
         if not (args.ready_timeout > 0 and math.isfinite(args.ready_timeout)):
             raise LaunchError(f"--ready-timeout must be > 0 and finite, got {args.ready_timeout}")
-        policies = parse_restart_policies(args.restart, [n.name for n in GRAPH_NODES], args.max_restarts)
-        check_restart_policies(policies)
+        groups = compose_groups(args.group if args.group is not None else [] if args.compose else None)
+        policies = parse_restart_policies(args.restart, process_names(groups), args.max_restarts)
+        check_restart_policies(policies, groups)
         mission = args.mission.resolve()
         params = args.params.resolve() if args.params else None
         if params is not None:
             check_params_file(params)
         check_mission(mission)
-        for n in GRAPH_NODES:  # resolve runners early: one clear error, before anything starts
+        for n in (*GRAPH_NODES, *((CONTAINER,) if groups else ())):  # one clear error, before anything starts
             node_command(n, args.runner)
         # the run directory is claimed atomically (os.mkdir): two launches in the same second never share one
         if args.out is not None:
@@ -548,10 +632,12 @@ def _main(argv: Sequence[str] | None) -> int:
     env["ROS_DOMAIN_ID"] = str(monitor.domain_id)
     env["ROS_LOG_DIR"] = str(log_dir / "ros")
     specs = graph_specs(mission, run_dir, mode=args.mode, params=params, record=not args.no_record,
-                        runner=args.runner, policies=policies, monitor=monitor)
+                        runner=args.runner, policies=policies, monitor=monitor, groups=groups)
     echo = (lambda name, line: print(f"[{name}] {line}", file=sys.stderr, flush=True)) if args.echo else None
     print(f"[bb2-launch] mission {mission} | mode {args.mode} | ROS_DOMAIN_ID={monitor.domain_id} | "
           f"run {run_dir}", file=sys.stderr, flush=True)
+    for g in groups:
+        print(f"[bb2-launch] composed: process '{process_name(g)}' runs {', '.join(g)}", file=sys.stderr, flush=True)
     sup = Supervisor(specs, log_dir, env=env, echo=echo)
     try:
         result = run_graph(sup, monitor, first=[s.name for s in specs if s.ready is not None],

@@ -95,6 +95,7 @@ class ProcessSpec:
     env: Mapping[str, str] | None = None
     nice: int = 0  # niceness increment (> 0: yields the CPU to the control loop; e.g. the recorder)
     early: bool = False  # started at once by run_graph, alongside the ready-gated ones (needs nothing before it)
+    nodes: int = 1  # the ROS nodes the process runs (a container of composed nodes: several)
 
     def argv(self, attempt: int) -> list[str]:
         cmd = self.command(attempt) if callable(self.command) else self.command

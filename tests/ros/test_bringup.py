@@ -90,6 +90,32 @@ def test_ros2_launch_flies_a_mission_in_lockstep_and_records_the_bag_of_bb2_laun
     assert a == b  # every state of the run, to the last bit
 
 
+def test_ros2_launch_compose_true_runs_the_nodes_in_one_container_and_flies_the_same_steps(ws):
+    """``compose:=true``: planner, controllers and simulator in one ``container`` process, the recorder alone; the
+    container's exit (the simulator at the end) ends the launch; the recorded states equal the library runner's."""
+    import numpy as np
+
+    from bb2_mission import MissionRunner, load_mission
+
+    env, install, tmp = ws
+    p = launch(ws, 216, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "compose:=true",
+               f"bag:={tmp / 'composed'}")
+    out = finish(p, 180)
+    assert p.returncode == 0, out[-3000:]
+    assert "| composed" in out and "container exited (code 0): stopping the graph" in out, out[-3000:]
+    assert out.count("process started with pid") == 2, out[-3000:]  # the container and the recorder
+    assert "process has died" not in out, out[-3000:]
+    runner = MissionRunner(load_mission(tmp / "short.yaml"))
+    ref = {runner.sim.t: runner.sim.x.copy()}
+    while not runner.done:
+        runner.step()
+        ref[runner.sim.t] = runner.sim.x.copy()
+    got = states(tmp / "composed")
+    assert len(got) == len(ref) == 51, (len(got), len(ref))
+    for t, x in ref.items():
+        assert np.max(np.abs(np.array(got[t][1:13]) - x)) <= 1e-9, t
+
+
 def test_ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished(ws):
     env, install, tmp = ws
     p = launch(ws, 215, "bb2_graph.launch.py", "mission:=canyon", f"bag:={tmp / 'interrupted'}")

@@ -66,7 +66,7 @@ def test_colcon_build_packages_up_to_one_package(env, tmp_path, pkg):
                             "ros2 pkg executables bb2_ros"], env=env, capture_output=True, text=True, timeout=120)
         assert r.returncode == 0, r.stderr
         assert sorted(r.stdout.split()) == sorted(
-            ["bb2_ros"] * 5 + ["l1_autopilot", "mixer", "path_following", "planner", "simulator"])
+            ["bb2_ros"] * 6 + ["container", "l1_autopilot", "mixer", "path_following", "planner", "simulator"])
 
 
 @pytest.mark.parametrize("mode", ["copy", "symlink"])

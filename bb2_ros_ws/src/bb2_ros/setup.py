@@ -31,6 +31,7 @@ setup(
             'path_following = bb2_ros.path_following:main',
             'l1_autopilot = bb2_ros.l1_autopilot:main',
             'mixer = bb2_ros.mixer:main',
+            'container = bb2_ros.container:main',
         ],
     },
 )

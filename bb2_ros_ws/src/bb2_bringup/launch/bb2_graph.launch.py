@@ -10,6 +10,8 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
   namespace    '' or NAME: the boat's nodes run in /NAME and its topics are /NAME/bb2/... and /NAME/clock
                (several boats side by side without crosstalk; fleet.launch.py starts several)
   params_file  the graph's params file (default share/bb2_bringup/config/bb2_graph.yaml)
+  compose      true | false: the planner, the controllers and the simulator composed into one process
+               (``ros2 run bb2_ros container``, one executor; bb2-launch --compose), the recorder alone
 
 It starts what ``bb2-launch`` starts — simulator, planner, path_following, l1_autopilot, mixer and (record) the
 recorder, each its own process, the recorder and the planner at nice +10 — with the same parameters: the
@@ -17,7 +19,9 @@ params file, then the mission, the time mode, use_sim_time (the simulator is the
 ``wait_for_readers`` (the bag misses nothing from the first step) and in lockstep ``recorder_ack_window`` (the graph
 waits for a stalled recorder rather than lose messages).  The simulator ends the run where bb2-launch does (the
 mission duration, or ``end_at_progress``: the path flown) and exits; its exit stops the whole launch (the
-recorder finishes its bag on the SIGINT).  Ctrl-C stops every node cleanly.
+recorder finishes its bag on the SIGINT).  Ctrl-C stops every node cleanly.  With ``compose:=true`` the same nodes
+with the same arguments run in one ``container`` process (each node's ROS arguments apply to it alone), whose
+exit ends the launch.
 """
 from __future__ import annotations
 
@@ -26,11 +30,13 @@ from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler
+from launch.actions import (DeclareLaunchArgument, EmitEvent, ExecuteProcess, LogInfo, OpaqueFunction,
+                            RegisterEventHandler)
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+from launch_ros.substitutions import ExecutableInPackage
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
 NOT_REMAPPED = ("/diagnostics", "/tf")  # the standard diagnostics topic is global; /tf is written into bags only
@@ -45,6 +51,7 @@ ARGUMENTS = {
     "bag_dir": ("bags", "where bags go when bag is ''"),
     "namespace": ("", "'' or NAME: nodes in /NAME, topics /NAME/bb2/... and /NAME/clock"),
     "params_file": (str(SHARE / "config" / "bb2_graph.yaml"), "the graph's ROS 2 params file"),
+    "compose": ("false", "true | false: planner, controllers and simulator in one process (the container)"),
 }
 
 
@@ -97,9 +104,32 @@ def remappings(namespace: str, node: str) -> list[tuple[str, str]]:
     return [(n, ns + n) for n in dict.fromkeys(["/clock", *names]) if n not in NOT_REMAPPED]
 
 
+def _ros_value(v) -> str:
+    return str(v).lower() if isinstance(v, bool) else str(v)
+
+
+def container_arguments(nodes: list[tuple[str, dict]], params: list[str], ns: str) -> list[str]:
+    """The ``container`` command line of ``nodes`` (executable, parameters): each node's own ROS arguments,
+    what ``Node`` gives it in a process of its own (params files, parameters, remaps, namespace)."""
+    out: list[str] = []
+    for executable, values in nodes:
+        out += ["--node", executable, "--ros-args"]
+        for f in params:
+            out += ["--params-file", f]
+        for k, v in values.items():
+            out += ["-p", f"{k}:={_ros_value(v)}"]
+        for a, b in remappings(ns, executable):
+            out += ["-r", f"{a}:={b}"]
+        if ns:
+            out += ["-r", f"__ns:=/{ns}"]
+        out.append("--")
+    return out
+
+
 def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, namespace: str, params_file: str,
-         stop_launch: bool = True) -> list:
-    """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch)."""
+         stop_launch: bool = True, compose: bool = False) -> list:
+    """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch;
+    ``compose``: every node but the recorder in one container process)."""
     if time_mode not in ("lockstep", "realtime"):
         raise RuntimeError(f"launch argument time_mode must be lockstep or realtime, got {time_mode!r}")
     ns = namespace.strip("/")
@@ -117,21 +147,25 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
         assert bag is not None
         actions.append(node("bb2_tools", "recorder", {"bag_directory": str(bag), "use_sim_time": True},
                             background=True))
-    actions += [
-        node("bb2_ros", "planner", {"use_sim_time": True}, background=True),
-        node("bb2_ros", "path_following", {"use_sim_time": True}),
-        node("bb2_ros", "l1_autopilot", {"use_sim_time": True}),
-        node("bb2_ros", "mixer", {"use_sim_time": True}),
-    ]
-    sim = node("bb2_ros", "simulator", {"use_sim_time": False, "time_mode": time_mode, "exit_at_end": True,
-                                        "end_at_progress": True,
-                                        "wait_for_readers": record,
-                                        "recorder_ack_window": RECORDER_ACK_WINDOW if record and time_mode == "lockstep"
-                                        else 0})
-    actions.append(sim)
+    sim_values = {"use_sim_time": False, "time_mode": time_mode, "exit_at_end": True, "end_at_progress": True,
+                  "wait_for_readers": record,
+                  "recorder_ack_window": RECORDER_ACK_WINDOW if record and time_mode == "lockstep" else 0}
+    controllers = [("planner", True), ("path_following", False), ("l1_autopilot", False), ("mixer", False)]
+    if compose:
+        nodes = [(exe, {**common, "use_sim_time": True}) for exe, _bg in controllers]
+        nodes.append(("simulator", {**common, **sim_values}))
+        sim = ExecuteProcess(cmd=[ExecutableInPackage("container", "bb2_ros"),
+                                  *container_arguments(nodes, params, ns)],
+                             name="container" + (f"_{ns}" if ns else ""), output="screen")
+        actions.append(sim)
+    else:
+        actions += [node("bb2_ros", exe, {"use_sim_time": True}, background=bg) for exe, bg in controllers]
+        sim = node("bb2_ros", "simulator", sim_values)
+        actions.append(sim)
+    what = "container" if compose else "simulator"
     if stop_launch:
         actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=lambda event, _ctx: [
-            LogInfo(msg=f"[bb2_bringup] simulator{' of ' + ns if ns else ''} exited (code {event.returncode}): "
+            LogInfo(msg=f"[bb2_bringup] {what}{' of ' + ns if ns else ''} exited (code {event.returncode}): "
                         "stopping the graph"),
             EmitEvent(event=Shutdown(reason="the simulator ended the run"))])))
     return actions
@@ -149,8 +183,9 @@ def _graph(context):
     bag = (Path(a["bag"]).expanduser().resolve() if a["bag"] else default_bag(a["bag_dir"], mission, a["namespace"])) \
         if record else None
     acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
-                params_file=a["params_file"])
+                params_file=a["params_file"], compose=flag(a["compose"], "compose"))
     return [LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
+                        + (" | composed" if flag(a["compose"], "compose") else "")
                         + (f" | namespace /{a['namespace'].strip('/')}" if a["namespace"] else "")
                         + (f" | bag {bag}" if bag else " | not recorded")), *acts]
 

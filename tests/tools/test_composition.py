@@ -1,0 +1,160 @@
+"""Issue 15, point 2: the nodes composed into one process (``bb2-launch --compose`` / ``--group``).
+
+* the composed graph (every composable node in one process, and a partial grouping) equals the graph of one process
+  per node and the library runner, step by step (lockstep, 1e-9 m), every node reporting from its container;
+* the container takes each node's arguments for that node alone, refuses bad command lines with one line;
+* a composed process that is killed is reported like any node, and the bag is still finished.
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rosenv import launch_with_fault, node_pid, ros_env  # noqa: E402  (tests/rosenv.py)
+
+REPO = Path(__file__).resolve().parents[2]
+PY = sys.executable
+DURATION_S = 20.0
+H = 0.05
+
+
+# ------------------------------------------------------------------------------------ without ROS
+def test_compose_groups_names_and_the_container_command(tmp_path):
+    from bb2_tools.launcher import COMPOSABLE, compose_groups, graph_specs, process_name, process_names
+    from bb2_tools.supervisor import LaunchError
+
+    assert compose_groups(None) == []
+    assert compose_groups([]) == [COMPOSABLE]
+    assert compose_groups(["mixer,path_following", " l1_autopilot "]) == [("path_following", "mixer"),
+                                                                          ("l1_autopilot",)]
+    for bad, why in ((["mixer,recorder"], "recorder cannot be composed"), (["mixer,nope"], "unknown node 'nope'"),
+                     (["mixer", "mixer,simulator"], "'mixer' is in two groups"), ([","], "no node named")):
+        with pytest.raises(LaunchError, match=why):
+            compose_groups(bad)
+    assert process_name(COMPOSABLE) == "container"
+    assert process_name(("path_following", "mixer")) == "path_following+mixer"
+    assert process_names([COMPOSABLE]) == ["recorder", "container"]
+
+    groups = compose_groups(["path_following,l1_autopilot,mixer"])
+    specs = graph_specs(tmp_path / "m.yaml", tmp_path / "run", groups=groups, runner="python")
+    assert [s.name for s in specs] == ["recorder", "planner", "path_following+l1_autopilot+mixer", "simulator"]
+    cmd = specs[2].command(0)
+    assert "bb2_ros.container" in " ".join(cmd)
+    nodes = [cmd[i + 1] for i, a in enumerate(cmd) if a == "--node"]
+    assert nodes == ["path_following", "l1_autopilot", "mixer"]
+    # each node's own ROS arguments, closed by '--'; a restart makes the path following rejoin the run
+    first = cmd[cmd.index("--node"):cmd.index("--node", cmd.index("--node") + 1)]
+    assert first[2] == "--ros-args" and first[-1] == "--" and "use_sim_time:=true" in first
+    assert "rejoin_run:=true" not in cmd and "rejoin_run:=true" in specs[2].command(1)
+    assert "recorder_ack_window:=10" in specs[3].command(0)
+    alone = graph_specs(tmp_path / "m.yaml", tmp_path / "run", runner="python")
+    assert [s.name for s in alone] == ["recorder", "planner", "path_following", "l1_autopilot", "mixer",
+                                       "simulator"]
+
+
+@pytest.mark.parametrize("args,why", [([], "expected --node NAME"), (["mixer"], "expected --node NAME"),
+                                      (["--node"], "needs a node name"),
+                                      (["--node", "recorder"], r"unknown node\(s\) \['recorder'\]"),
+                                      (["--node", "mixer", "--node", "mixer"], "given twice")])
+def test_the_container_refuses_a_bad_command_line_with_one_line(args, why):
+    r = subprocess.run([PY, "-m", "bb2_ros.container", *args], capture_output=True, text=True, env=ros_env(),
+                       timeout=60)
+    assert r.returncode == 2, r
+    assert re.search(why, r.stderr) and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_bb2_launch_refuses_a_restart_of_a_composed_simulator(tmp_path):
+    r = subprocess.run([PY, "-m", "bb2_tools.launcher", str(REPO / "missions" / "straight.yaml"), "--compose",
+                        "--restart", "container=restart:1", "--out", str(tmp_path / "x")], capture_output=True,
+                       text=True, env=ros_env(), timeout=60)
+    assert r.returncode == 2 and "composed in 'container', which restarts as a whole" in r.stderr, r.stderr
+    r = subprocess.run([PY, "-m", "bb2_tools.launcher", str(REPO / "missions" / "straight.yaml"), "--compose",
+                        "--restart", "mixer=restart", "--out", str(tmp_path / "y")], capture_output=True, text=True,
+                       env=ros_env(), timeout=60)
+    assert r.returncode == 2 and "mixer" in r.stderr and not (tmp_path / "y").exists(), r.stderr
+
+
+# ------------------------------------------------------------------------------------ the graph, composed
+def _library_trajectory(mission_file: Path) -> np.ndarray:
+    from bb2_mission import MissionRunner, load_mission
+
+    runner = MissionRunner(load_mission(mission_file))
+    xs = [np.r_[runner.sim.t, runner.sim.x]]
+    while not runner.done:
+        runner.step()
+        xs.append(np.r_[runner.sim.t, runner.sim.x])
+    return np.array(xs)
+
+
+def _status_names(bag: Path) -> set[str]:
+    from bb2_tools.bagfile import BagReader
+
+    return {st.name for _t, _lt, msg in BagReader(bag).messages("/bb2/status") for st in msg.status}
+
+
+@pytest.fixture(scope="module")
+def canyon_20s(tmp_path_factory) -> tuple[Path, np.ndarray]:
+    d = tmp_path_factory.mktemp("compose")
+    mission = d / "canyon_short.yaml"
+    mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nname: canyon_short\nduration_s: {DURATION_S}\n")
+    return mission, _library_trajectory(mission)
+
+
+LAYOUTS = {"one process per node": [], "composed": ["--compose"],
+           "control loop composed": ["--group", "path_following,l1_autopilot,mixer"]}
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("layout", list(LAYOUTS))
+def test_the_graph_composed_or_not_equals_the_library_runner(tmp_path, canyon_20s, layout):
+    """Every layout flies the same steps: the simulator's own trajectory (every step, %.17g) equals the library
+    runner's within 1e-9 m, every node reports its status into the bag, the launcher saw all six nodes."""
+    pytest.importorskip("rclpy")
+    mission, ref = canyon_20s
+    csv_file = tmp_path / "traj.csv"
+    params = tmp_path / "params.yaml"
+    params.write_text(f"simulator:\n  ros__parameters:\n    trajectory_csv: {csv_file}\n")
+    out = tmp_path / "run"
+    r = subprocess.run([PY, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--params", str(params),
+                        "--end-at", "simulator", "--timeout", "300", *LAYOUTS[layout]], capture_output=True,
+                       text=True, env=ros_env(), timeout=400, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-4000:]
+    assert "mission complete" in r.stderr and "nodes 6/6" in r.stderr, r.stderr[-3000:]
+    if layout == "composed":
+        assert "composed: process 'container' runs planner, path_following, l1_autopilot, mixer, simulator" \
+            in r.stderr
+        logs = {p.name for p in (out / "logs").glob("*.log")}
+        assert {"recorder.log", "container.log"} <= logs and "simulator.log" not in logs, logs
+    elif layout == "control loop composed":
+        assert (out / "logs" / "path_following+l1_autopilot+mixer.log").is_file()
+    traj = np.loadtxt(csv_file, delimiter=",", skiprows=1)
+    assert traj.shape == ref.shape == (int(round(DURATION_S / H)) + 1, 13)
+    np.testing.assert_array_equal(traj[:, 0], ref[:, 0])
+    assert np.max(np.abs(traj[:, 1:] - ref[:, 1:])) <= 1e-9, layout
+    assert np.ptp(ref[:, 1]) > 50.0  # the vehicle really travelled
+    assert {"bb2/simulator", "bb2/planner", "bb2/path_following", "bb2/l1_autopilot", "bb2/mixer"} \
+        <= _status_names(out), _status_names(out)
+    assert "recording complete: no gaps" in r.stderr, r.stderr[-3000:]
+
+
+@pytest.mark.ros
+def test_a_killed_container_is_reported_like_any_node_and_the_bag_is_finished(tmp_path):
+    pytest.importorskip("rclpy")
+    mission = tmp_path / "straight60.yaml"
+    mission.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: straight60\nduration_s: 60\n")
+    out = tmp_path / "run"
+    code, err = launch_with_fault(mission, out, "--compose", min_sim_s=5.0, timeout_s=300,
+                                  fault=lambda: os.kill(node_pid("container", str(mission)), signal.SIGKILL))
+    assert code == 1, err[-3000:]
+    assert re.search(r"node 'container' (ended|failed) \(.*SIGKILL", err), err[-3000:]
+    from bb2_tools.bagfile import read_metadata
+
+    meta = read_metadata(out)
+    assert meta["message_count"] > 0, meta
