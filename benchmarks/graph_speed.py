@@ -13,9 +13,15 @@
    plane-command loop latency, source time of the mixer's command minus that of the simulator's
    state with the same stamp -- goal p99 <= 3 ms.
 
+3. Ratios (issue 15): absolute figures do not carry from one machine to the next, so the same invocation also runs
+   the library mission runner (:class:`bb2_mission.MissionRunner`, no ROS) on the same lockstep mission and prints
+   graph RTF / runner RTF -- goals >= 0.5 with one process per node, >= 0.8 composed -- for each layout
+   (``--layout``: ``alone`` one process per node, ``composed`` the container of ``bb2-launch --compose``), each
+   repetition paired with its own runner run; ``--repeat N`` prints min/median/max over N.
+
 Usage: ``python benchmarks/graph_speed.py [--out DIR] [--rt-sim-s 100] [--lockstep-sim-s 500] [--only MODE]
-[--normal-scheduling]``
-(``bash run.sh bench`` runs it with the defaults; about 1-3 minutes of wall time on 2 cores).
+[--layout alone|composed|both] [--repeat N] [--normal-scheduling]``
+(``bash run.sh bench`` runs it with the defaults; about 3-6 minutes of wall time on 2 cores).
 """
 from __future__ import annotations
 
@@ -109,8 +115,12 @@ class Probe:
         rclpy.shutdown(context=self.context)
 
 
+LAYOUTS = {"alone": [], "composed": [L.COMPOSABLE]}
+"""The process layouts measured: one process per node, or every composable node in the container."""
+
+
 def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeout_s: float,
-                   probe: bool = False) -> tuple[L.RunResult, float, Probe | None]:
+                   probe: bool = False, groups=()) -> tuple[L.RunResult, float, Probe | None]:
     """Fly ``mission`` through the whole graph (recorder included); return the run result, the
     wall time from the first /clock to the end, and the probe (if asked for, closed)."""
     os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
@@ -121,7 +131,7 @@ def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeou
     monitor = free_domain_id(end_at="simulator")
     env = dict(os.environ, ROS_DOMAIN_ID=str(monitor.domain_id), ROS_LOG_DIR=str(out / "logs" / "ros"),
                PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    specs = L.graph_specs(mission, out, mode=mode, params=params, monitor=monitor)
+    specs = L.graph_specs(mission, out, mode=mode, params=params, monitor=monitor, groups=groups)
     sup = Supervisor(specs, out / "logs", env=env)
     pr = Probe(monitor.domain_id) if probe else None
     try:
@@ -168,21 +178,34 @@ def stamps_and_pub_times(reader, topic: str) -> list[tuple[int, int]]:
     return out
 
 
-def lockstep(args, tmp: Path) -> None:
+def runner_rtf(args, tmp: Path) -> float:
+    """The library mission runner's real-time factor on the lockstep benchmark's mission (same process, no ROS)."""
+    from bb2_mission import MissionRunner, load_mission
+
+    mission = tmp / "canyon_runner.yaml"
+    mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nduration_s: {float(args.lockstep_sim_s)}\n")
+    s = MissionRunner(load_mission(mission)).run().summary
+    rtf = s.mission_time_s / s.wall_time_s
+    print(f"library runner, same mission: {s.mission_time_s:.1f} s simulated in {s.wall_time_s:.2f} s wall: "
+          f"{rtf:.1f}x")
+    return rtf
+
+
+def lockstep(args, tmp: Path, layout: str = "alone") -> dict:
     from bb2_tools.bagfile import BagReader
 
-    out = tmp / "lockstep"
-    csv_path = tmp / "lockstep_states.csv"
+    out = tmp / f"lockstep_{layout}"
+    csv_path = tmp / f"lockstep_{layout}_states.csv"
     t0 = time.monotonic()
     res, stepping_wall, _ = run_graph_once(REPO / "missions" / "canyon.yaml", out, "lockstep",
                                         {"duration_s": float(args.lockstep_sim_s), "trajectory_csv": str(csv_path)},
-                                        timeout_s=args.timeout)
+                                        timeout_s=args.timeout, groups=LAYOUTS[layout])
     total_wall = time.monotonic() - t0
-    print(f"lockstep canyon: {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s")
+    print(f"lockstep canyon ({layout}): {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s")
     if res.exit_code != 0:
         for e in res.exits:
             print("  " + e.report(5))
-        return
+        return {}
     with open(csv_path) as fh:
         states = sum(1 for _ in csv.reader(fh)) - 1  # header
     steps = states - 1
@@ -216,22 +239,24 @@ def lockstep(args, tmp: Path) -> None:
         lost_total += max(lost, 0)
         print(f"    {name:40s} published {pub:6d}  in bag {bag:6d}  lost {lost:5d}")
     print(f"  lost messages: {lost_total}   [goal 0]")
+    return {"rtf": res.rtf_overall, "lost": lost_total}
 
 
-def realtime(args, tmp: Path) -> None:
+def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     from bb2_tools.bagfile import BagReader
 
-    out = tmp / "realtime"
+    out = tmp / f"realtime_{layout}"
     rate = 100.0
     params = {"duration_s": float(args.rt_sim_s), "rate_hz": rate}
     if args.normal_scheduling:  # what a user without root gets
         params.update(realtime_priority=0, hold_cpu_dma_latency=False)
     res, _, probe = run_graph_once(REPO / "missions" / "canyon.yaml", out, "realtime", params, timeout_s=args.timeout,
-                                   probe=True)
-    print(f"real time at {rate:g} Hz: {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s"
+                                   probe=True, groups=LAYOUTS[layout])
+    print(f"real time at {rate:g} Hz ({layout}): {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s"
           + (" (normal scheduling, cpu_dma_latency not held)" if args.normal_scheduling else ""))
     if res.exit_code != 0:
-        return
+        return {}
+    figures = {}
     stamps = sorted(probe.state_src)
     pubs = np.array([probe.state_src[s] for s in stamps], dtype=np.int64)
     period_ms = np.diff(pubs) * 1e-6
@@ -239,6 +264,7 @@ def realtime(args, tmp: Path) -> None:
     print(f"  step period (DDS source timestamps of /bb2/state_native): {len(period_ms)} periods, mean "
           f"{period_ms.mean():.3f} ms; |period - {1e3 / rate:g} ms| p50 {np.percentile(dev_ms, 50):.3f} ms, "
           f"p99 {np.percentile(dev_ms, 99):.3f} ms, max {dev_ms.max():.3f} ms   [goal p99 <= 1 ms]")
+    figures["jitter_p99_ms"] = float(np.percentile(dev_ms, 99))
     lat_ms = np.array([(probe.cmd_src[s] - probe.state_src[s]) * 1e-6 for s in stamps if s in probe.cmd_src])
     answered = [s for s in stamps if s in probe.cmd_src]
     if answered:
@@ -250,12 +276,23 @@ def realtime(args, tmp: Path) -> None:
     if len(lat_ms):
         print(f"  loop latency /bb2/state_native -> /bb2/planes/cmd (same stamp, source timestamps): "
               f"{len(lat_ms)}/{len(stamps)} steps answered, p50 {np.percentile(lat_ms, 50):.3f} ms, "
-              f"p99 {np.percentile(lat_ms, 99):.3f} ms, max {lat_ms.max():.3f} ms   [goal p99 <= 3 ms]")
+              f"p99 {np.percentile(lat_ms, 99):.3f} ms, max {lat_ms.max():.3f} ms   "
+              f"[goal p99 <= {1 if layout == 'composed' else 3} ms]")
+        figures["latency_p99_ms"] = float(np.percentile(lat_ms, 99))
     reader = BagReader(out)
     status = last_simulator_status(reader)
     print(f"  simulator status: overruns {status.get('overruns')}, failsafe steps {status.get('failsafe_steps')}, "
           f"measured step rate {status.get('step_rate_hz')} Hz, stepping thread {status.get('scheduling')}, "
           f"cpu_dma_latency {status.get('cpu_dma_latency')}")
+    return figures
+
+
+def spread(values: list[float]) -> str:
+    """min / median / max of ``values`` (those measured), or what is missing."""
+    v = [x for x in values if x is not None and np.isfinite(x)]
+    if not v:
+        return "not measured"
+    return f"min {min(v):.3g} / median {float(np.median(v)):.3g} / max {max(v):.3g} (n = {len(v)})"
 
 
 def main() -> int:
@@ -265,17 +302,48 @@ def main() -> int:
     ap.add_argument("--rt-sim-s", type=float, default=100.0)
     ap.add_argument("--timeout", type=float, default=900.0, help="wall limit per run (s)")
     ap.add_argument("--only", choices=("lockstep", "realtime"), default=None)
+    ap.add_argument("--layout", choices=("alone", "composed", "both"), default="both",
+                    help="one process per node, the nodes composed, or both (default)")
+    ap.add_argument("--repeat", type=int, default=1, help="repetitions (min/median/max printed at the end)")
     ap.add_argument("--normal-scheduling", action="store_true",
                     help="real time without the simulator's SCHED_FIFO thread and cpu_dma_latency request "
                          "(realtime_priority 0, hold_cpu_dma_latency false): what a user without root gets")
     args = ap.parse_args()
+    if args.repeat < 1:
+        ap.error("--repeat must be >= 1")
+    layouts = ["alone", "composed"] if args.layout == "both" else [args.layout]
+    rows: dict[str, dict[str, list]] = {k: {} for k in layouts}
     with tempfile.TemporaryDirectory(prefix="bb2_graph_speed_") as t:
-        tmp = args.out or Path(t)
-        tmp.mkdir(parents=True, exist_ok=True)
-        if args.only in (None, "lockstep"):
-            lockstep(args, tmp)
-        if args.only in (None, "realtime"):
-            realtime(args, tmp)
+        root = args.out or Path(t)
+        for rep in range(args.repeat):
+            tmp = root / f"run{rep + 1}"
+            tmp.mkdir(parents=True, exist_ok=True)
+            print(f"=== repetition {rep + 1}/{args.repeat}")
+            runner = runner_rtf(args, tmp) if args.only in (None, "lockstep") else None
+            for layout in layouts:
+                fig = {}
+                if args.only in (None, "lockstep"):
+                    lk = lockstep(args, tmp, layout)
+                    fig["graph RTF (lockstep, while stepping)"] = lk.get("rtf")
+                    fig["runner RTF (same mission)"] = runner
+                    fig["graph / runner"] = lk["rtf"] / runner if lk.get("rtf") and runner else None
+                    fig["lost messages"] = lk.get("lost")
+                if args.only in (None, "realtime"):
+                    rt = realtime(args, tmp, layout)
+                    fig["real time 100 Hz: latency p99 (ms)"] = rt.get("latency_p99_ms")
+                    fig["real time 100 Hz: jitter p99 (ms)"] = rt.get("jitter_p99_ms")
+                for k, v in fig.items():
+                    rows[layout].setdefault(k, []).append(v)
+    goals = {"alone": {"graph / runner": ">= 0.5", "real time 100 Hz: latency p99 (ms)": "<= 3",
+                       "real time 100 Hz: jitter p99 (ms)": "<= 1", "lost messages": "0"},
+             "composed": {"graph / runner": ">= 0.8", "real time 100 Hz: latency p99 (ms)": "<= 1",
+                          "real time 100 Hz: jitter p99 (ms)": "<= 1", "lost messages": "0"}}
+    print(f"\n=== summary over {args.repeat} repetition(s) (each graph run paired with that repetition's runner)")
+    for layout in layouts:
+        print(f"{layout}:")
+        for k, vals in rows[layout].items():
+            goal = goals[layout].get(k)
+            print(f"  {k:40s} {spread(vals)}" + (f"   [goal {goal}]" if goal else ""))
     return 0
 
 

@@ -147,8 +147,8 @@ def test_the_graph_composed_or_not_equals_the_library_runner(tmp_path, canyon_20
 @pytest.mark.ros
 def test_a_killed_container_is_reported_like_any_node_and_the_bag_is_finished(tmp_path):
     pytest.importorskip("rclpy")
-    mission = tmp_path / "straight60.yaml"
-    mission.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: straight60\nduration_s: 60\n")
+    mission = tmp_path / "straight600.yaml"  # long enough to be running when the monitor's first line comes
+    mission.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: straight600\nduration_s: 600\n")
     out = tmp_path / "run"
     code, err = launch_with_fault(mission, out, "--compose", min_sim_s=5.0, timeout_s=300,
                                   fault=lambda: os.kill(node_pid("container", str(mission)), signal.SIGKILL))
