@@ -87,3 +87,18 @@ def launch_with_fault(mission: Path, out: Path, *args: str, fault, min_sim_s: fl
             p.kill()
             p.wait()
     return p.returncode, seen + err
+
+
+def library_trajectory(mission_file: Path):
+    """``[t, x(12)]`` of every step of the library mission runner on ``mission_file`` (what the lockstep graph must
+    equal), as an array."""
+    import numpy as np
+
+    from bb2_mission import MissionRunner, load_mission
+
+    runner = MissionRunner(load_mission(mission_file))
+    xs = [np.r_[runner.sim.t, runner.sim.x]]
+    while not runner.done:
+        runner.step()
+        xs.append(np.r_[runner.sim.t, runner.sim.x])
+    return np.array(xs)

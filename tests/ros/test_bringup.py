@@ -19,7 +19,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ros2_tooling import tooling_env, tooling_venv  # noqa: E402  (tests/ros2_tooling.py)
-from rosenv import ros_env  # noqa: E402
+from rosenv import library_trajectory, ros_env  # noqa: E402
 
 pytestmark = pytest.mark.ros
 REPO = Path(__file__).resolve().parents[2]
@@ -95,8 +95,6 @@ def test_ros2_launch_compose_true_runs_the_nodes_in_one_container_and_flies_the_
     container's exit (the simulator at the end) ends the launch; the recorded states equal the library runner's."""
     import numpy as np
 
-    from bb2_mission import MissionRunner, load_mission
-
     env, install, tmp = ws
     p = launch(ws, 216, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "compose:=true",
                f"bag:={tmp / 'composed'}")
@@ -105,11 +103,7 @@ def test_ros2_launch_compose_true_runs_the_nodes_in_one_container_and_flies_the_
     assert "| composed" in out and "container exited (code 0): stopping the graph" in out, out[-3000:]
     assert out.count("process started with pid") == 2, out[-3000:]  # the container and the recorder
     assert "process has died" not in out, out[-3000:]
-    runner = MissionRunner(load_mission(tmp / "short.yaml"))
-    ref = {runner.sim.t: runner.sim.x.copy()}
-    while not runner.done:
-        runner.step()
-        ref[runner.sim.t] = runner.sim.x.copy()
+    ref = {row[0]: row[1:] for row in library_trajectory(tmp / "short.yaml")}
     got = states(tmp / "composed")
     assert len(got) == len(ref) == 51, (len(got), len(ref))
     for t, x in ref.items():

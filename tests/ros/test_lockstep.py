@@ -21,7 +21,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import library_trajectory, spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = REPO / "config" / "bb2_graph.yaml"
@@ -76,17 +76,6 @@ class Listener:
         rclpy.shutdown(context=self.ctx)
 
 
-def _library_trajectory(mission_file: Path) -> np.ndarray:
-    from bb2_mission import MissionRunner, load_mission
-
-    runner = MissionRunner(load_mission(mission_file))
-    xs = [np.r_[runner.sim.t, runner.sim.x]]
-    while not runner.done:
-        runner.step()
-        xs.append(np.r_[runner.sim.t, runner.sim.x])
-    return np.array(xs)
-
-
 @pytest.mark.parametrize("state_source", ["native", "odometry"])
 def test_graph_lockstep_equals_library_runner(tmp_path, state_source):
     """``native``: the controllers run on /bb2/state_native (exact); ``odometry``: on /bb2/odom (REP-103,
@@ -97,7 +86,7 @@ def test_graph_lockstep_equals_library_runner(tmp_path, state_source):
     csv_file = tmp_path / "traj.csv"
     common = ["--params-file", str(PARAMS), "-p", f"mission_file:={mission}", "-p", "status_period_s:=0.5",
               "-p", f"state_source:={state_source}"]
-    ref = _library_trajectory(mission)
+    ref = library_trajectory(mission)
     listener = Listener(domain_id)
     procs = {m: spawn_node(m, domain_id, *common) for m in CONTROLLERS}
     sim = None

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rosenv import launch_with_fault, node_pid, ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import launch_with_fault, library_trajectory, node_pid, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable
@@ -82,17 +82,6 @@ def test_bb2_launch_refuses_a_restart_of_a_composed_simulator(tmp_path):
 
 
 # ------------------------------------------------------------------------------------ the graph, composed
-def _library_trajectory(mission_file: Path) -> np.ndarray:
-    from bb2_mission import MissionRunner, load_mission
-
-    runner = MissionRunner(load_mission(mission_file))
-    xs = [np.r_[runner.sim.t, runner.sim.x]]
-    while not runner.done:
-        runner.step()
-        xs.append(np.r_[runner.sim.t, runner.sim.x])
-    return np.array(xs)
-
-
 def _status_names(bag: Path) -> set[str]:
     from bb2_tools.bagfile import BagReader
 
@@ -104,7 +93,7 @@ def canyon_20s(tmp_path_factory) -> tuple[Path, np.ndarray]:
     d = tmp_path_factory.mktemp("compose")
     mission = d / "canyon_short.yaml"
     mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nname: canyon_short\nduration_s: {DURATION_S}\n")
-    return mission, _library_trajectory(mission)
+    return mission, library_trajectory(mission)
 
 
 LAYOUTS = {"one process per node": [], "composed": ["--compose"],
