@@ -333,12 +333,20 @@ def check_killed(cell: Cell) -> None:
     assert cell.fault_at_s <= st[-1] < cell.duration_s - 1.0, (cell.fault_at_s, st[-1])
     assert all(s.get("state") == "running" for s in cell.statuses), [s.get("state") for s in cell.statuses]
     killed_topic = {"simulator": "/bb2/state_native", **OUTPUT}.get(n)
-    if killed_topic:  # nothing of the killed node after the kill; its last message answers (or is) the last state
+    if killed_topic and killed_topic not in cell.stamps:
+        # killed before the recorder had matched its writer (seen beside two CPU hogs and with three cells at once:
+        # path_following killed 3 s into the run, the mixer 1 s in; their commands reached the next node, no sample
+        # the recorder, and the transient-local history died with the writer): only early in the run
+        assert cell.fault_at_s <= 10.0 and n != "simulator", (killed_topic, cell.fault_at_s)
+    elif killed_topic:  # nothing of the killed node after the kill; its last message answers (or is) the last state
         assert not _published_between(cell, killed_topic, cell.fault_wall + 0.05, float("inf")), killed_topic
         # (its very last sample may die in flight with it: the mixer had it, the recorder not yet)
         assert cell.fault_at_s - 2 * TS <= max(cell.stamps[killed_topic]) <= st[-1]
     # every state from the first recorded answer (real time starts on the failsafe until the controllers answer)
     # up to the fault was answered
+    if "/bb2/planes/cmd" not in cell.stamps:  # the mixer (or what feeds it) killed before the recorder matched it
+        assert cell.fault_at_s <= 10.0, cell.fault_at_s
+        return
     answered = set(cell.stamps["/bb2/planes/cmd"])
     unanswered = [t for t in st if min(answered) <= t <= cell.fault_at_s and t not in answered]
     assert not unanswered, (min(answered), unanswered[:5])
