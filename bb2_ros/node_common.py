@@ -155,6 +155,20 @@ def _parameter_rules(node) -> dict[str, _ParameterRule]:
     return rules
 
 
+def ros_arguments(argv: Sequence[str]) -> list[str]:
+    """The arguments inside the ``--ros-args`` scopes of ``argv`` (each scope ends at ``--`` or the end)."""
+    out: list[str] = []
+    in_ros = False
+    for a in argv:
+        if a == "--ros-args":
+            in_ros = True
+        elif a == "--":
+            in_ros = False
+        elif in_ros:
+            out.append(a)
+    return out
+
+
 _node_argv: list[str] | None = None  # the argv run_node gave rclpy (for command_line_params)
 
 
@@ -163,14 +177,9 @@ def command_line_params(argv: Sequence[str] | None = None) -> dict[str, str]:
     the arguments :func:`run_node` started the node with, else ``sys.argv``; the last one of a name wins, as in
     rcl)."""
     out: dict[str, str] = {}
-    in_ros = False
-    args = list((_node_argv if _node_argv is not None else sys.argv) if argv is None else argv)
+    args = ros_arguments((_node_argv if _node_argv is not None else sys.argv) if argv is None else argv)
     for i, a in enumerate(args):
-        if a == "--ros-args":
-            in_ros = True
-        elif a == "--":
-            in_ros = False
-        elif in_ros and a in ("-p", "--param") and i + 1 < len(args):
+        if a in ("-p", "--param") and i + 1 < len(args):
             name, sep, value = args[i + 1].partition(":=")
             if sep:
                 out[name] = value
@@ -221,16 +230,9 @@ def require_positive(name: str, value: float, *, allow_zero: bool = False) -> fl
 def remap_rules(argv: Sequence[str]) -> list[tuple[str | None, str, str]]:
     """``(node or None, from, to)`` of every ``-r``/``--remap`` rule in the ROS arguments of ``argv``."""
     rules: list[tuple[str | None, str, str]] = []
-    in_ros = False
-    it = iter(list(argv))
+    it = iter(ros_arguments(argv))
     for a in it:
-        if a == "--ros-args":
-            in_ros = True
-            continue
-        if a == "--":
-            in_ros = False
-            continue
-        if in_ros and a in ("-r", "--remap"):
+        if a in ("-r", "--remap"):
             rule = next(it, "")
             if ":=" not in rule:
                 continue
@@ -335,20 +337,6 @@ def node_options() -> dict[str, Any]:
     ROS arguments as ``cli_args`` and not the process's (``use_global_arguments=False``), so each composed node
     gets exactly the parameters and remaps it would get alone."""
     return dict(_node_options)
-
-
-def ros_arguments(argv: Sequence[str]) -> list[str]:
-    """The arguments inside the ``--ros-args`` scopes of ``argv`` (each scope ends at ``--`` or the end)."""
-    out: list[str] = []
-    in_ros = False
-    for a in argv:
-        if a == "--ros-args":
-            in_ros = True
-        elif a == "--":
-            in_ros = False
-        elif in_ros:
-            out.append(a)
-    return out
 
 
 def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str] | None = None) -> int:
