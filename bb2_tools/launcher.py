@@ -54,6 +54,7 @@ from typing import Mapping, Sequence
 
 from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
 
+from bb2_ros.container import NODE_CLASSES
 from bb2_tools.graph_monitor import END_AT, GraphMonitor, claim_domain, format_status, free_domain_id
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
                                   Supervisor, parse_restart_policies)
@@ -304,8 +305,9 @@ absorb the delay; the planner only publishes the path), not the loop's."""
 
 CONTAINER = GraphNode("container", "bb2_ros", "container", "bb2_ros.container:main")
 """The process that runs several nodes composed (:mod:`bb2_ros.container`)."""
-COMPOSABLE = ("planner", "path_following", "l1_autopilot", "mixer", "simulator")
-"""The nodes ``--compose`` may put into one process (the recorder waits on its own wait set: a process of its own)."""
+COMPOSABLE = tuple(n.name for n in GRAPH_NODES if n.name in NODE_CLASSES)
+"""The nodes ``--compose`` may put into one process (the container's, in start order; the recorder waits on its own
+wait set: a process of its own)."""
 
 
 def compose_groups(groups: Sequence[str] | None) -> list[tuple[str, ...]]:
