@@ -22,6 +22,7 @@ Topic remapping is the standard ROS 2 one: ``--ros-args -r /bb2/odom:=/other/odo
 """
 from __future__ import annotations
 
+import faulthandler
 import math
 import os
 import signal
@@ -322,6 +323,68 @@ def _profiler():
     return prof
 
 
+TEARDOWN_S = 5.0  # a node process still alive this long after it was told to stop exits by itself
+
+
+class ExitWatchdog:
+    """Bounds the time from a stop request to the end of a node process.  Once armed (the stop signal, or the end
+    of the spin loop), a daemon thread waits ``TEARDOWN_S``; if the process is still there, the teardown is stuck
+    (in the middleware: rclpy's node and context teardown, or the interpreter's exit; seen about once in a few
+    hundred runs on a loaded machine): it writes every thread's stack and one line to stderr (the node's log) and
+    ends the process with the exit code it was armed with.  A node's work is over once it is told to stop, so
+    nothing is lost.  Should that thread never get the interpreter (a teardown stuck holding it), faulthandler's
+    own thread does the same ``BACKSTOP_S`` later without it, with exit code 1 -- still before the launcher's
+    SIGTERM (its SIGINT grace is 10 s)."""
+
+    BACKSTOP_S = 3.0
+
+    def __init__(self, process: str, timeout_s: float = TEARDOWN_S):
+        self.process, self.timeout_s = process, timeout_s
+        self.code = EXIT_OK
+        self._armed = threading.Event()
+        self._lock = threading.Lock()
+
+    def arm(self, code: int) -> None:
+        with self._lock:
+            self.code = max(self.code, int(code))
+            if self._armed.is_set():
+                return
+            self._armed.set()
+        faulthandler.dump_traceback_later(self.timeout_s + self.BACKSTOP_S, exit=True)
+        threading.Thread(target=self._run, name="bb2-exit-watchdog", daemon=True).start()
+
+    def _run(self) -> None:
+        time.sleep(self.timeout_s)
+        faulthandler.dump_traceback(all_threads=True)
+        print(f"{self.process}: still running {self.timeout_s:g} s after it was told to stop (stacks above): "
+              f"exiting with code {self.code}", file=sys.stderr, flush=True)
+        os._exit(self.code)
+
+
+def stop_signals(stop: threading.Event, on_stop: Callable[[], None] | None = None) -> dict[int, Any]:
+    """Install the stop handlers of a node process: SIGINT and SIGTERM set ``stop`` (and call ``on_stop`` once).
+    Once told to stop, a further SIGTERM (what the launcher sends a node that did not stop on SIGINT within its
+    grace) first writes the Python stack of every thread to stderr, the node's log, so a node that hangs at
+    shutdown shows where.  Returns the previous handlers, for :func:`restore_signals`."""
+    def on_signal(*_) -> None:
+        if not stop.is_set():
+            stop.set()
+            faulthandler.register(signal.SIGTERM, all_threads=True, chain=True)
+            if on_stop is not None:
+                on_stop()
+
+    return {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
+def restore_signals(previous: dict[int, Any], stop: threading.Event) -> None:
+    """Undo :func:`stop_signals`.  A process told to stop ignores further stop signals until it has exited: Ctrl-C
+    reaches the whole process group of `ros2 launch`, which then forwards its own SIGINT, and a KeyboardInterrupt
+    raised while the interpreter tears the middleware down aborts the process (exit -6)."""
+    faulthandler.unregister(signal.SIGTERM)
+    for s, h in previous.items():
+        signal.signal(s, signal.SIG_IGN if stop.is_set() else h)
+
+
 def _node_of(shell):
     from rclpy.node import Node
 
@@ -371,8 +434,9 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
     except Exception as exc:  # rcl's own message names the bad params file / argument
         _error(process, f"cannot start ROS (bad --ros-args or params file?): {exc}")
         return EXIT_BAD_INPUT
+    watchdog = ExitWatchdog(process)
     stop = threading.Event()
-    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = stop_signals(stop, on_stop=lambda: watchdog.arm(EXIT_OK))
     shells: list[Any] = []
     code = EXIT_OK
     try:
@@ -403,6 +467,7 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
         _error(process, f"{type(exc).__name__}: {exc}")
         code = EXIT_RUNTIME_ERROR
     finally:
+        watchdog.arm(code)  # from here on the process has TEARDOWN_S to be gone
         for shell in shells:
             try:
                 if hasattr(shell, "close"):
@@ -412,11 +477,7 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
                 pass
         if rclpy.ok():
             rclpy.shutdown()
-        # a node told to stop ignores further stop signals until it has exited: Ctrl-C reaches the whole process
-        # group of `ros2 launch`, which then forwards its own SIGINT, and a KeyboardInterrupt raised while the
-        # interpreter tears the middleware down aborts the process (exit -6)
-        for s, h in previous.items():
-            signal.signal(s, signal.SIG_IGN if stop.is_set() else h)
+        restore_signals(previous, stop)
     return code
 
 

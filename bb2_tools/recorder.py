@@ -43,7 +43,6 @@ from __future__ import annotations
 import argparse
 import functools
 import math
-import signal
 import sys
 import threading
 import time
@@ -53,7 +52,7 @@ from typing import Any, Sequence
 from bb2_msgs_py.contract import SIM, ContractError, TopicSpec, message_class, select_topics
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
-from bb2_ros.node_common import take_all, time_msg
+from bb2_ros.node_common import restore_signals, stop_signals, take_all, time_msg
 
 ODOM_TOPIC = "/bb2/odom"
 ODOM_TYPE = "nav_msgs/msg/Odometry"
@@ -484,10 +483,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
     stop = threading.Event()
 
-    def on_signal(signum, _frame):
-        stop.set()
-
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = stop_signals(stop)
     rec = Recorder(bag, specs, tf_from_odom=not args.no_tf and par["tf_from_odom"], flush_period_s=float(flush),
                    queue_depth=int(depth), use_sim_time=use_sim_time, node=node)
     print(f"bb2-record: recording {len(specs)} topics into {out}", flush=True)
@@ -510,8 +506,7 @@ def _main(argv: Sequence[str] | None) -> int:
                  else ""), flush=True)
         if rclpy.ok():
             rclpy.shutdown()
-        for s, h in previous.items():  # told to stop: ignore further stop signals until exited (see run_node)
-            signal.signal(s, signal.SIG_IGN if stop.is_set() else h)
+        restore_signals(previous, stop)
     return code
 
 
