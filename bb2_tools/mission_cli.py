@@ -1,6 +1,7 @@
 """``bb2-sim mission FILE.yaml [--out DIR] [--no-adaptation] [--quiet]``: fly a closed-loop mission without ROS.
 
-Prints RMS/max vertical and horizontal path errors, the minimum ground clearance and the mission time.
+Prints what it flies (path, stack, adaptation, terrain, duration limit; the sea and current) and then the RMS/max
+vertical and horizontal path errors, the minimum ground clearance and the mission time.
 With ``--out DIR`` writes ``DIR/<mission>.csv`` (one row per Ts = 0.05 s, written as the run goes, so a
 failed run keeps every row up to the failure) and the figures of :mod:`bb2_tools.mission_plots`.
 
@@ -64,6 +65,7 @@ def run_mission_cli(a: argparse.Namespace) -> int:
         print(f"mission {m.name}: path {m.path_source} (Tf = {m.path.span:g} s), stack {runner.stack.name}, "
               f"adaptation {'on' if m.adaptation else 'off'}, terrain {m.terrain_source or 'none'}, "
               f"duration limit {m.duration:g} s")
+        print(f"  sea: {m.environment.summary()}")
 
     def progress(t: float) -> None:
         sys.stderr.write(f"\r  t = {t:7.1f} / {m.duration:.0f} s")

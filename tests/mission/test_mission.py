@@ -279,3 +279,22 @@ def test_divergence_stops_and_reports(model):
     assert ev.kind == "diverged" and ev.t == pytest.approx(2.0) and "diverged at t = 2.00 s" in ev.detail
     assert len(r.traj["t_s"]) == 41 and np.isnan(r.traj["d1_deg"][-1]) and r.summary.end_reason == "diverged"
     assert np.allclose(ev.p_native, [r.traj["x_m"][-1], r.traj["y_m"][-1], r.traj["z_m"][-1]])
+
+
+@pytest.mark.parametrize("sea_doc, current_doc, words", [
+    ("", "", "sea: sea state 0 (the authors' regular table); no current"),
+    ("sea_state: 5\n", "", "sea: sea state 5 (the authors' regular table); no current"),
+    ("sea: {spectrum: jonswap, hs: 2.5, tp: 9.0, heading_deg: 45, spreading_s: 4, components: 16, seed: 3}\n",
+     "current: {speed_mps: 0.5, heading_deg: 90}\n",
+     "sea: jonswap Hs 2.5 m, Tp 9 s, gamma 3.3, heading 45 deg, cos-2s s = 4, 16 components, seed 3; "
+     "current 0.5 m/s towards 90 deg, uniform"),
+])
+def test_cli_header_says_the_sea_and_current(tmp_path, capsys, sea_doc, current_doc, words):
+    """`bb2-sim mission` prints the sea and current it flies in, under its header line."""
+    from bb2_tools.mission_cli import run_mission_cli
+
+    f = tmp_path / "short.yaml"
+    f.write_text(f"extends: {MISSIONS_DIR / 'straight.yaml'}\nname: short\nduration_s: 0.5\n{sea_doc}{current_doc}")
+    assert run_mission_cli(argparse.Namespace(file=str(f), out=None, no_adaptation=False, quiet=False)) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("mission short: path ") and lines[1] == f"  {words}", lines[:2]
