@@ -16,12 +16,13 @@ from bb2_mission.records import MISSION_COLUMNS, MissionRow, read_mission_csv, r
 from bb2_mission.runner import MissionResult, MissionRunner, MissionStep, run_mission
 from bb2_mission.schema import (MISSIONS_DIR, InitialState, Limits, Mission, MissionError, load_mission,
                                 mission_from_dict)
-from bb2_mission.summary import EndReason, MissionEvent, MissionSummary, path_errors_closest, summarize
+from bb2_mission.summary import EndReason, MissionEvent, MissionSummary, limit_event, path_errors_closest, summarize
 
 __all__ = [
     "EndReason", "MissionError", "InitialState", "Limits", "Mission", "MissionComponents", "MissionStep",
     "MissionEvent", "MissionSummary", "MissionResult", "MissionRunner", "MissionRow", "HullProbes", "MISSION_COLUMNS",
     "MISSIONS_DIR", "load_mission", "mission_from_dict", "mission_components", "stack_overrides", "initial_state",
-    "run_mission", "read_mission_csv", "rows_to_columns", "path_errors_closest", "terrain_elevation", "summarize",
+    "run_mission", "limit_event", "read_mission_csv", "rows_to_columns", "path_errors_closest", "terrain_elevation",
+    "summarize",
     "build_model", "build_simulator", "build_mission_stack", "build_mixer", "nominal_rps",
 ]

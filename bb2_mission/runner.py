@@ -29,7 +29,7 @@ from bb2_mission.components import mission_components, terrain_elevation
 from bb2_mission.lockstep_gate import clamp_planes_deg, clamp_rps
 from bb2_mission.records import MissionRow, rows_to_columns
 from bb2_mission.schema import Mission, load_mission
-from bb2_mission.summary import EndReason, MissionEvent, MissionSummary, summarize
+from bb2_mission.summary import EndReason, MissionEvent, MissionSummary, limit_event, summarize
 
 __all__ = ["MissionStep", "MissionResult", "MissionRunner", "run_mission"]
 
@@ -115,16 +115,7 @@ class MissionRunner:
             row = self._row(state, x, self._last_out, None, tz, cl, hull) if self._last_out else None
             return MissionStep(state, None, None, tz, cl, hull, row, self.event)
         self._last_out = out
-        event = None
-        lim = self.mission.limits
-        if math.isfinite(hull) and hull < lim.min_hull_clearance_m:
-            event = MissionEvent(EndReason.GROUNDED, sim.t, x[0:3].copy(),
-                                 f"lowest hull point {hull:.2f} m above the terrain (limit "
-                                 f"{lim.min_hull_clearance_m} m); CG clearance {cl:.2f} m")
-        elif x[2] > self.c.max_cg_z_m:
-            event = MissionEvent(EndReason.BROACHED, sim.t, x[0:3].copy(),
-                                 f"CG z = {x[2]:.2f} m above the limit {self.c.max_cg_z_m:.2f} m"
-                                 + (" (sail top at the calm surface)" if lim.max_cg_z_m is None else ""))
+        event = limit_event(self.mission.limits, self.c.max_cg_z_m, sim.t, x, hull, cl)
         rec = None
         if event is None:
             try:

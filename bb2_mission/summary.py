@@ -15,7 +15,8 @@ import numpy as np
 
 from bb2_planner.bernstein import BernsteinPath
 
-__all__ = ["EndReason", "MissionEvent", "MissionSummary", "path_errors_closest", "summarize", "rms_max"]
+__all__ = ["EndReason", "MissionEvent", "MissionSummary", "limit_event", "path_errors_closest", "summarize",
+           "rms_max"]
 
 
 class EndReason(StrEnum):
@@ -45,6 +46,23 @@ class MissionEvent:
         return (f"{self.kind} at t = {self.t:.2f} s, CG at x = {x:.1f}, y = {y:.1f}, z = {z:.1f} m (native): "
                 f"{self.detail}")
 
+
+
+def limit_event(limits: Any, max_cg_z_m: float, t: float, x: np.ndarray, hull_clearance_m: float,
+                cg_clearance_m: float) -> MissionEvent | None:
+    """The mission's failure checks on the state ``x`` (native, 12) of the tick at ``t``: grounded when the
+    lowest hull point is closer to the terrain than ``limits.min_hull_clearance_m`` (NaN: no terrain under the
+    hull, no check), else broached when the CG z is above ``max_cg_z_m`` (``limits.max_cg_z_m``, or the sail top
+    at the calm surface when that is None).  What the runner ends on and ``bb2-analyze`` finds in a bag."""
+    if math.isfinite(hull_clearance_m) and hull_clearance_m < limits.min_hull_clearance_m:
+        return MissionEvent(EndReason.GROUNDED, t, np.array(x[0:3], dtype=float),
+                            f"lowest hull point {hull_clearance_m:.2f} m above the terrain (limit "
+                            f"{limits.min_hull_clearance_m} m); CG clearance {cg_clearance_m:.2f} m")
+    if x[2] > max_cg_z_m:
+        return MissionEvent(EndReason.BROACHED, t, np.array(x[0:3], dtype=float),
+                            f"CG z = {x[2]:.2f} m above the limit {max_cg_z_m:.2f} m"
+                            + (" (sail top at the calm surface)" if limits.max_cg_z_m is None else ""))
+    return None
 
 
 @dataclass(frozen=True)

@@ -180,6 +180,31 @@ class CommandFigures:
 
 
 @dataclass(frozen=True)
+class RunEnd:
+    """How the recorded run ended, by the mission runner's rules: ``reason`` an :class:`bb2_mission.EndReason`
+    value -- ``finished`` (progress 1), ``duration``, ``grounded`` / ``broached`` (the first tick that breaks the
+    mission's limits, :func:`bb2_mission.limit_event`; the runner stops there, the graph flies on),
+    ``diverged`` (the simulator said so, or a state is not finite) -- at ``t_s`` (s; None: unknown), and for a
+    failure the ``message`` the runner gives (``grounded at t = 12.35 s, CG at ...: lowest hull point ...``).
+    Limits are checked only when the mission is known."""
+
+    reason: str
+    t_s: float | None = None
+    message: str = ""
+
+    @property
+    def completed(self) -> bool:
+        """The runner's ``completed``: the stack finished the path."""
+        return self.reason == "finished"
+
+    def line(self) -> str:
+        return self.message or self.reason + ("" if self.t_s is None else f" at t = {self.t_s:.2f} s")
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"reason": self.reason, "t_s": self.t_s, "completed": self.completed, "message": self.message}
+
+
+@dataclass(frozen=True)
 class RunFigures:
     """Every figure of one analysed run (see the module docstring for the definitions)."""
 
@@ -192,6 +217,7 @@ class RunFigures:
     commands: CommandFigures
     real_time_factor: float                 #: sim time / wall time (NaN: unknown)
     maneuver: ManeuverFigures | None = None  #: bb2_sim.metrics figures of a maneuver run
+    end: RunEnd = RunEnd("")                #: how the run ended (reason "" for a maneuver bag)
 
     def named(self) -> dict[str, float]:
         """The named figures (as printed and written by ``bb2-analyze``), in their fixed order."""
@@ -357,8 +383,8 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
     zt = cl = hull = np.full(n, np.nan)
     clearance = ClearanceFigures()
     terrain = getattr(mission, "terrain", None)
+    probes = _hull_probes(mission, warnings) if mission is not None else None
     if terrain is not None:
-        probes = _hull_probes(mission, warnings)
         vals = np.array([_clearances(terrain, probes, xi) for xi in run.x])
         zt, cl, hull = vals[:, 0], vals[:, 1], vals[:, 2]
         clt, hullt = cl[tick], hull[tick]
@@ -429,9 +455,10 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
                 raise AnalysisError(f"maneuver {maneuver!r}: {exc}") from None
             warnings.append(f"maneuver figures of {maneuver!r} not computed: {exc}")
 
+    end = RunEnd("") if maneuver else _run_end(run, tick, mission, probes, cl, hull, warnings)
     figures = RunFigures(times=times, path_error=stack_errors, path_error_closest=closest_errors,
                          final_progress=final_progress, clearance=clearance, trajectory=trajectory,
-                         commands=commands, real_time_factor=rtf, maneuver=man_figs)
+                         commands=commands, real_time_factor=rtf, maneuver=man_figs, end=end)
     return Analysis(run=run, figures=figures, tick=tick, e_vertical=e_v, e_horizontal=e_h,
                     e_vertical_closest=np.asarray(ev_c, float), e_horizontal_closest=np.asarray(eh_c, float),
                     clearance=cl, hull_clearance=hull, terrain_z=zt, mission=mission, maneuver=maneuver,
@@ -492,6 +519,40 @@ def _clearances(terrain: Any, probes: Any, x: np.ndarray) -> tuple[float, float,
     cl = pts[:, 2] - zt
     hull = float(np.nanmin(cl[1:])) if len(cl) > 1 and np.isfinite(cl[1:]).any() else math.nan
     return float(zt[0]), float(cl[0]), hull
+
+
+def _run_end(run: BagRun, tick: np.ndarray, mission: Any, probes: Any, cl: np.ndarray, hull: np.ndarray,
+             warnings: list[str]) -> RunEnd:
+    """:class:`RunEnd` of a mission bag (already cut at progress 1 by :func:`_until_finished`)."""
+    from bb2_mission import limit_event
+
+    if run.status_value("state", "bb2/simulator") == "diverged":
+        return RunEnd("diverged", None, "diverged: " + (run.status_value("error", "bb2/simulator") or "(no detail)"))
+    bad = np.flatnonzero(~np.isfinite(run.x).all(axis=1))
+    if len(bad):
+        t = float(run.t[bad[0]])
+        return RunEnd("diverged", t, f"diverged at t = {t:.2f} s: the recorded state is not finite")
+    if mission is not None:
+        lim = mission.limits
+        if lim.max_cg_z_m is not None:
+            max_z = float(lim.max_cg_z_m)
+        elif probes is not None:
+            max_z = -float(probes.sail_top_m)
+        else:
+            max_z = math.inf
+            warnings.append("no hull probes: broaching not checked")
+        with np.errstate(invalid="ignore"):
+            broken = tick & ((np.isfinite(hull) & (hull < lim.min_hull_clearance_m)) | (run.x[:, 2] > max_z))
+        if broken.any():
+            k = int(np.flatnonzero(broken)[0])
+            ev = limit_event(lim, max_z, float(run.t[k]), run.x[k], float(hull[k]), float(cl[k]))
+            later = int(tick[k + 1:].sum())
+            warnings.append(f"the run {ev.kind} at t = {ev.t:.2f} s ({ev.detail}): the mission runner ends there; "
+                            f"the figures also cover the {later} recorded tick(s) after it")
+            return RunEnd(str(ev.kind), float(ev.t), str(ev))
+    if len(run.progress) and float(run.progress.v[-1, 0]) >= 1.0:
+        return RunEnd("finished", float(run.t[-1]))
+    return RunEnd("duration", float(run.t[-1]))
 
 
 def _hull_probes(mission: Any, warnings: list[str]) -> Any:

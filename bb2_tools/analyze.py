@@ -41,6 +41,8 @@ def figure_lines(a: Analysis) -> list[str]:
     out = [f"{a.label}: {a.run.source}"]
     for w in a.warnings:
         out.append(f"  warning: {w}")
+    if a.figures.end.reason:
+        out.append(f"  end: {a.figures.end.line()}")
     for k, v in a.named_figures.items():
         label, text, unit = format_figure(k, v)
         out.append(f"  {label:<44s} {text:>12s} {unit}")
@@ -67,8 +69,8 @@ def write_outputs(analyses: Sequence[Analysis], out_dir: str | Path) -> dict[str
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = analysis_plots.plot_analyses(analyses, out)
-    doc = {a.label: {"source": str(a.run.source), "figures": a.named_figures, "warnings": a.warnings}
-           for a in analyses}
+    doc = {a.label: {"source": str(a.run.source), "figures": a.named_figures, "warnings": a.warnings,
+                     "end": a.figures.end.as_dict()} for a in analyses}
     if len(analyses) == 2:
         doc["comparison"] = [{"figure": k, "A": va, "B": vb, "B_minus_A": d}
                              for k, va, vb, d in compare(analyses[0], analyses[1])]

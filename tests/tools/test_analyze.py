@@ -242,6 +242,41 @@ def test_ground_clearance_from_mission(bags):
     assert any("altimeter" in w for w in b.warnings)
 
 
+def test_end_of_the_run_by_the_runner_rules(bags, tmp_path):
+    """The run's end, as the library runner would give it: the duration, the finish (progress 1), and the first
+    tick that breaks the mission's limits -- found in a bag whose graph flew on past it -- with the runner's own
+    message; figures.json and the printout carry it."""
+    bag, runner, traj = bags["circle"]
+    a = analyze(read_bag(bag))
+    assert runner.end_reason.value == "duration" and a.figures.end.reason == "duration"
+    assert not a.figures.end.completed and a.figures.end.message == ""
+    past = bags["root"] / "circle_past_finish"  # written by test_analysis_ends_where_the_mission_finished
+    if not past.exists():
+        write_mission_bag(_short("circle", 46.0), past, progress_one_at=39.95)
+    b = analyze(read_bag(past))
+    assert b.figures.end.reason == "finished" and b.figures.end.completed and b.figures.end.t_s == pytest.approx(40.0)
+
+    # the canyon bag flew 15 s; a mission with a hull-clearance limit it crosses on the way grounds there
+    cbag, crunner, ctraj = bags["canyon"]
+    hull = ctraj["hull_clearance_m"]
+    limit = float(hull[0] + np.nanmin(hull)) / 2.0
+    tight = dataclasses.replace(crunner.mission, limits=dataclasses.replace(crunner.mission.limits,
+                                                                            min_hull_clearance_m=limit))
+    ref = MissionRunner(tight).run()
+    assert ref.summary.end_reason.value == "grounded" and 0.0 < ref.summary.event.t < 14.0
+    c = analyze(read_bag(cbag), mission=tight)
+    end = c.figures.end
+    assert (end.reason, end.t_s, end.message) == ("grounded", ref.summary.event.t, str(ref.summary.event))
+    assert any(w.startswith(f"the run grounded at t = {ref.summary.event.t:.2f} s") for w in c.warnings)
+    assert f"  end: {str(ref.summary.event)}" in an.figure_lines(c)
+    files = an.write_outputs([c], tmp_path / "out")
+    import json
+
+    doc = next(iter(json.loads(files["figures_json"].read_text()).values()))
+    assert doc["end"] == {"reason": "grounded", "t_s": ref.summary.event.t, "completed": False,
+                          "message": str(ref.summary.event)}
+
+
 # ------------------------------------------------------------------------------------------ CLI
 def test_two_bags_overlay_and_differences(bags, capsys, tmp_path):
     (b1, r1, t1), (b2, r2, t2) = bags["circle"], bags["circle_noad"]
