@@ -121,6 +121,8 @@ QOS: dict[str, QosDescription] = {
     "clock": QosDescription("reliable", "volatile", "keep_last", 100, reader_reliability="best_effort"),
     # /tf as tf2_ros::DynamicBroadcasterQoS writes it (bags only: the recorder's, from /bb2/odom)
     "tf": QosDescription("reliable", "volatile", "keep_last", 100),
+    # /tf_static as tf2_ros::StaticBroadcasterQoS writes it (bags only: the recorder's, from the sensor mountings)
+    "tf_static": QosDescription("reliable", "transient_local", "keep_last", 1),
     # status / diagnostics
     # (written transient local as the commands: the recorder gets a node's first statuses even when it matched
     # that node after they went out; readers ask for volatile)
@@ -252,6 +254,9 @@ CONTRACT: tuple[TopicSpec, ...] = (
     TopicSpec("/tf", "tf2_msgs/msg/TFMessage", "tf", "odom -> base_link", "m, quaternion",
               RECORDER, (EXTERNAL,), "derived from /bb2/odom by the recorder (bags only)",
               bag_only=True),
+    TopicSpec("/tf_static", "tf2_msgs/msg/TFMessage", "tf_static", "base_link -> <sensor>_link", "m, quaternion",
+              RECORDER, (EXTERNAL,), "the sensor mountings (and DVL beams) from /bb2/sensors/mountings, written by "
+              "the recorder (bags only)", bag_only=True),
 )
 
 _BY_NAME = {t.name: t for t in CONTRACT}

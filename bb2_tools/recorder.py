@@ -2,7 +2,9 @@
 
 It subscribes with raw (serialized) subscriptions, so the CDR bytes go into the bag untouched, and
 writes them with :mod:`bb2_tools.bagfile`.  From every ``/bb2/odom`` message it also writes a
-``/tf`` ``tf2_msgs/TFMessage`` (``odom -> base_link``), so Foxglove shows the vehicle.
+``/tf`` ``tf2_msgs/TFMessage`` (``odom -> base_link``), so Foxglove shows the vehicle, and from the sensor suite's
+``/bb2/sensors/mountings`` a ``/tf_static`` (``base_link -> <sensor>_link``, the DVL's beams), so the bag carries
+every sensor frame (tf2_msgs is not in the wheels: the nodes cannot publish either themselves).
 
 Times, as rosbag2 records them: the MCAP log time is the *receive* time on the recorder node's
 clock (the simulation time when ``use_sim_time`` is true, i.e. the last /clock received), the
@@ -64,6 +66,10 @@ TF_TOPIC = "/tf"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 # tf2_ros::DynamicBroadcasterQoS: reliable, volatile, keep last 100
 TF_QOS = qos_entry(reliability="reliable", durability="volatile", history="keep_last", depth=100)
+TF_STATIC_TOPIC = "/tf_static"
+# tf2_ros::StaticBroadcasterQoS: reliable, transient local, keep last 1
+TF_STATIC_QOS = qos_entry(reliability="reliable", durability="transient_local", history="keep_last", depth=1)
+MOUNTINGS_TOPIC = "/bb2/sensors/mountings"
 
 
 def qos_to_entry(profile) -> dict[str, Any]:
@@ -116,6 +122,41 @@ def tf_cdr_from_odometry_cdr(data: bytes) -> bytes:
     Odometry raise rclpy's ``RuntimeError``."""
     deserialize, odometry, encode = _tf_codec()
     return encode(tf_from_odometry(deserialize(data, odometry)))
+
+
+def tf_static_from_mountings(doc: dict[str, Any], stamp_ns: int) -> dict[str, Any]:
+    """A ``tf2_msgs/TFMessage`` (as nested dicts) with every static transform of a sensor-mountings description
+    (format ``bb2_sensor_mountings/1``, :func:`bb2_msgs_py.sensor_conversions.mountings_description`), stamped
+    ``stamp_ns``.  :class:`ValueError` when the description is not that format."""
+    from bb2_msgs_py.sensor_conversions import MOUNTINGS_FORMAT
+
+    if not isinstance(doc, dict) or doc.get("format") != MOUNTINGS_FORMAT:
+        raise ValueError(f"not a {MOUNTINGS_FORMAT} description")
+    sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+    out = []
+    for tf in doc.get("transforms", []):
+        t, q = [float(v) for v in tf["translation_m"]], [float(v) for v in tf["rotation_xyzw"]]
+        if len(t) != 3 or len(q) != 4:
+            raise ValueError(f"transform {tf.get('child')!r}: translation_m needs 3 values, rotation_xyzw 4")
+        out.append({"header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": str(tf["parent"])},
+                    "child_frame_id": str(tf["child"]),
+                    "transform": {"translation": {"x": t[0], "y": t[1], "z": t[2]},
+                                  "rotation": {"x": q[0], "y": q[1], "z": q[2], "w": q[3]}}})
+    return {"transforms": out}
+
+
+def tf_static_cdr_from_mountings_cdr(data: bytes, stamp_ns: int) -> bytes:
+    """The CDR of a ``/tf_static`` ``tf2_msgs/TFMessage`` from a serialized ``/bb2/sensors/mountings``
+    (``std_msgs/String`` JSON; :func:`tf_static_from_mountings`); ValueError on a description it cannot read."""
+    import json
+
+    deserialize, _, encode = _tf_codec()
+    text = deserialize(data, message_class("std_msgs/msg/String")).data
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"not JSON: {exc}") from None
+    return encode(tf_static_from_mountings(doc, stamp_ns))
 
 
 def step_topics(topics: Sequence[TopicSpec]) -> set[str]:
@@ -181,7 +222,8 @@ class Recorder:
         # ``node``: a node of the caller's (the `recorder` executable's, with its parameters and parameter
         # services, which spin_once serves from its own wait set); else one without parameter services
         self.node = node if node is not None else Node(node_name, start_parameter_services=False)
-        self.tf_from_odom = tf_from_odom and any(t.name == ODOM_TOPIC for t in topics)
+        # /tf from the odometry and /tf_static from the sensor mountings
+        self.tf_from_odom = tf_from_odom and any(t.name in (ODOM_TOPIC, MOUNTINGS_TOPIC) for t in topics)
         self.use_sim_time = bool(use_sim_time)
         self._sim_ns = 0  # the last /clock taken (ROS time 0 until the first, as rclpy's time source)
         self._deserialize = deserialize_message
@@ -322,6 +364,15 @@ class Recorder:
                 if TF_TOPIC not in self.bag.topics:
                     self.bag.add_topic(TF_TOPIC, TF_TYPE, offered_qos=[TF_QOS])
                 self.bag.write(TF_TOPIC, tf_cdr_from_odometry_cdr(data), t_ns, pub_ns)
+            if self.tf_from_odom and spec.name == MOUNTINGS_TOPIC:
+                try:
+                    tf_static = tf_static_cdr_from_mountings_cdr(data, t_ns)
+                except (ValueError, KeyError, TypeError) as exc:  # the mountings are in the bag as they came
+                    self.node.get_logger().warning(f"{MOUNTINGS_TOPIC}: no {TF_STATIC_TOPIC} from it ({exc})")
+                else:
+                    if TF_STATIC_TOPIC not in self.bag.topics:
+                        self.bag.add_topic(TF_STATIC_TOPIC, TF_TYPE, offered_qos=[TF_STATIC_QOS])
+                    self.bag.write(TF_STATIC_TOPIC, tf_static, t_ns, pub_ns)
 
     def _step_stamp_ns(self, topic: str, data: bytes) -> int:
         """The step a per-step message belongs to: the state's time (its first element), else the stamp the
@@ -384,7 +435,8 @@ def _parse(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
                         "graph; must stay well below --depth messages per topic); 0 = take each as it "
                         "arrives (parameter batch_period_s); default 0.005")
     p.add_argument("--use-sim-time", action="store_true", help="log times from /clock (parameter use_sim_time)")
-    p.add_argument("--no-tf", action="store_true", help="do not derive /tf from /bb2/odom (parameter tf_from_odom)")
+    p.add_argument("--no-tf", action="store_true", help="do not derive /tf from /bb2/odom nor /tf_static from "
+                   "/bb2/sensors/mountings (parameter tf_from_odom)")
     p.add_argument("--overwrite", action="store_true", help="allow a non-empty --out directory (parameter "
                                                             "overwrite)")
     from rclpy.utilities import remove_ros_args
@@ -406,7 +458,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # read-only: a bag is configured whe
     "flush_period_s": (1.0, "storage: also close the open chunk every this many wall s (0 = never)"),
     "compression": ("zstd", "storage: chunk compression, zstd | lz4 | '' (none)"),
     "storage_id": ("mcap", "storage: rosbag2 storage plugin id; mcap (the only one written here)"),
-    "tf_from_odom": (True, "write /tf (odom -> base_link) from every /bb2/odom"),
+    "tf_from_odom": (True, "write /tf (odom -> base_link) from every /bb2/odom and /tf_static from "
+                            "/bb2/sensors/mountings"),
     "overwrite": (False, "allow a non-empty bag_directory"),
 }
 

@@ -28,6 +28,16 @@ from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 N_ODOM, N_CMD = 60, 20
+
+
+def _mountings() -> str:
+    from bb2_msgs_py.sensor_conversions import mountings_json
+    from bb2_sim.sensors import load_suite_config
+
+    return mountings_json(load_suite_config("tactical"), seed=5)
+
+
+MOUNTINGS = _mountings()  # what the simulator latches on /bb2/sensors/mountings for the tactical suite
 SIM_T0 = 1000.0  # /clock published before the data: log times must be sim time
 
 
@@ -50,7 +60,7 @@ def _start_recorder(out: Path, domain_id: int, *extra: str) -> subprocess.Popen:
 class Publishers:
     """Publishers of a few contract topics on an isolated context and domain."""
 
-    TOPICS = ("/clock", "/bb2/odom", "/bb2/planes/cmd", "/bb2/path")
+    TOPICS = ("/clock", "/bb2/odom", "/bb2/planes/cmd", "/bb2/path", "/bb2/sensors/mountings")
 
     def __init__(self, domain_id: int):
         from rclpy.context import Context
@@ -100,6 +110,7 @@ def test_recorder_records_real_dds_topics(tmp_path, domain_id):
         time.sleep(0.3)  # the recorder's clock takes /clock before the data arrive
         path = conv.path_message(SIM_T0, np.column_stack([-np.arange(10.0), np.zeros(10), -20.0 * np.ones(10)]))
         pubs.pubs["/bb2/path"].publish(path)
+        pubs.pubs["/bb2/sensors/mountings"].publish(message_class("std_msgs/msg/String")(data=MOUNTINGS))
         for k in range(N_ODOM):
             pubs.pubs["/bb2/odom"].publish(conv.state_to_odometry(_state(k)))
             if k % 3 == 0:
@@ -123,6 +134,7 @@ def test_recorder_records_real_dds_topics(tmp_path, domain_id):
     assert counts["/bb2/planes/cmd"] == N_CMD
     assert counts["/tf"] == N_ODOM  # one transform per odometry message
     assert counts["/bb2/path"] == 1
+    assert counts["/bb2/sensors/mountings"] == counts["/tf_static"] == 1  # the sensor frames, once
     assert counts["/clock"] == 10   # written reliable, read reliable by the recorder: none lost
     qos = {t["topic_metadata"]["name"]: t["topic_metadata"]["offered_qos_profiles"]
            for t in info["topics_with_message_count"]}
@@ -130,6 +142,7 @@ def test_recorder_records_real_dds_topics(tmp_path, domain_id):
     assert qos["/clock"][0]["reliability"] == "reliable"     # are written reliable; /clock too, issue 10)
     assert json.loads(info["custom_data"]["bb2_gaps"]) == []  # every sample published arrived
     assert qos["/bb2/path"][0]["durability"] == "transient_local"
+    assert (qos["/tf_static"][0]["durability"], qos["/tf_static"][0]["depth"]) == ("transient_local", 1)
 
     # the .mcap independently
     with open(out / info["relative_file_paths"][0], "rb") as f:
@@ -154,6 +167,16 @@ def test_recorder_records_real_dds_topics(tmp_path, domain_id):
         assert (tr.header.frame_id, tr.child_frame_id) == ("odom", "base_link")
         assert tr.transform.translation.x == o.pose.pose.position.x
         assert tr.header.stamp.nanosec == o.header.stamp.nanosec
+    # /tf_static: every mounting of the suite (sensors, and the DVL's beams under the DVL), as described
+    (_, log_ns, static), = list(r.messages("/tf_static"))
+    want = json.loads(MOUNTINGS)["transforms"]
+    got_tf = [(t.header.frame_id, t.child_frame_id, [t.transform.translation.x, t.transform.translation.y,
+                                                     t.transform.translation.z],
+               [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z, t.transform.rotation.w])
+              for t in static.transforms]
+    assert got_tf == [(w["parent"], w["child"], w["translation_m"], w["rotation_xyzw"]) for w in want]
+    assert {c for _, c, _, _ in got_tf} >= {"imu_link", "dvl_link", "dvl_beam_0", "gps_link"}
+    assert all(t.header.stamp.sec * 10**9 + t.header.stamp.nanosec == log_ns for t in static.transforms)
 
 
 def test_sigkilled_recorder_leaves_a_recoverable_bag(tmp_path, domain_id):
@@ -317,3 +340,23 @@ def test_the_recorder_acknowledges_the_oldest_newest_stamp_of_the_per_step_topic
     assert acks.next_ack() == 450
     acks.received("/bb2/imu", 400)                    # an older one (a re-send) changes nothing
     assert acks.next_ack() is None and acks.newest_ns["/bb2/imu"] == 450
+
+
+def test_tf_static_from_mountings_refuses_what_is_not_a_mountings_description():
+    """A mountings message the recorder cannot read gives no /tf_static (ValueError with the reason; the recorder
+    logs it and keeps the message itself in the bag)."""
+    from rclpy.serialization import serialize_message
+
+    from bb2_tools.recorder import tf_static_cdr_from_mountings_cdr, tf_static_from_mountings
+
+    string = message_class("std_msgs/msg/String")
+    with pytest.raises(ValueError, match="not JSON"):
+        tf_static_cdr_from_mountings_cdr(serialize_message(string(data="{oops")), 0)
+    with pytest.raises(ValueError, match="bb2_sensor_mountings/1"):
+        tf_static_cdr_from_mountings_cdr(serialize_message(string(data='{"format": "other"}')), 0)
+    doc = json.loads(MOUNTINGS)
+    doc["transforms"][0]["rotation_xyzw"] = [0.0, 0.0, 1.0]
+    with pytest.raises(ValueError, match="rotation_xyzw 4"):
+        tf_static_from_mountings(doc, 0)
+    good = tf_static_from_mountings(json.loads(MOUNTINGS), 1_500_000_000)
+    assert good["transforms"][0]["header"]["stamp"] == {"sec": 1, "nanosec": 500_000_000}
