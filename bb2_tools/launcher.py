@@ -22,6 +22,10 @@ process of its own.  A composed process is started, restarted (``--restart conta
 the simulator), stopped and reported by its name: ``container`` for all the composable nodes, else its nodes
 joined by ``+`` (``path_following+l1_autopilot+mixer``).
 
+Live view (``--foxglove [PORT]``): :mod:`bb2_tools.foxglove_live` beside the graph, a Foxglove WebSocket server on
+127.0.0.1:PORT (default 8765) serving every topic; restarted if it dies (a viewer never stops the mission); a
+taken port is refused before anything starts.
+
 Every child's stdout and stderr go to ``<run>/logs/<node>.log`` (and a ring buffer of the last
 lines).  ``<run>`` is the bag directory ``<bag-dir>/<mission>_<YYYYmmdd_HHMMSS>/`` (metadata.yaml
 and the .mcap beside ``logs/``).
@@ -304,6 +308,8 @@ absorb the delay; the planner only publishes the path), not the loop's."""
 
 
 CONTAINER = GraphNode("container", "bb2_ros", "container", "bb2_ros.container:main")
+FOXGLOVE = GraphNode("foxglove_bridge", "bb2_tools", "foxglove_bridge", "bb2_tools.foxglove_live:main")
+"""The live Foxglove WebSocket server (``--foxglove``): every graph topic, as :mod:`bb2_tools.foxglove_live`."""
 """The process that runs several nodes composed (:mod:`bb2_ros.container`)."""
 COMPOSABLE = tuple(n.name for n in GRAPH_NODES if n.name in NODE_CLASSES)
 """The nodes ``--compose`` may put into one process (the container's, in start order; the recorder waits on its own
@@ -356,7 +362,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 record: bool = True, runner: str = "auto",
                 policies: Mapping[str, RestartPolicy] | None = None,
                 monitor: GraphMonitor | None = None,
-                groups: Sequence[Sequence[str]] = ()) -> list[ProcessSpec]:
+                groups: Sequence[Sequence[str]] = (), foxglove_port: int | None = None) -> list[ProcessSpec]:
     """The process specs of the BB2 graph for one mission, in start order.
 
     The planner and the controllers, and in lockstep the simulator, are ``early``: :func:`run_graph`
@@ -369,7 +375,8 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     clock from its first tick, on the failsafe until commands arrive).  ``monitor`` gives the recorder
     its readiness probe.  ``groups`` (:func:`compose_groups`): nodes composed into one process each
     (:mod:`bb2_ros.container`, every node with the arguments it has alone); such a process starts, finishes
-    the graph, restarts and is reported as the nodes it holds would be.
+    the graph, restarts and is reported as the nodes it holds would be.  ``foxglove_port``: the live Foxglove
+    server on that port (:data:`FOXGLOVE`, off the control loop, started with the others).
     """
     from bb2_msgs_py.contract import select_topics
 
@@ -430,8 +437,28 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                                  finishes_graph="simulator" in group,
                                  nice=BACKGROUND_NICE if set(group) <= set(BACKGROUND_NODES) else 0,
                                  early="simulator" not in group or mode == "lockstep", nodes=len(group)))
+    if foxglove_port is not None:
+        base = node_command(FOXGLOVE, runner)
+        fox = [*base, "--ros-args", "-p", f"port:={int(foxglove_port)}", "-p", "use_sim_time:=true"]
+        # a viewer that dies comes back (clients reconnect) and never stops the mission
+        specs.insert(0, ProcessSpec(FOXGLOVE.name, lambda attempt, fox=fox: list(fox), RestartPolicy("restart"),
+                                    nice=BACKGROUND_NICE, early=True))
     first = [s for s in specs if s.ready is not None]
     return first + [s for s in specs if s.ready is None]
+
+
+FOXGLOVE_DEFAULT_PORT = 8765
+
+
+def check_foxglove_port(port: int) -> None:
+    """Refuse, before anything starts, a Foxglove port already taken on 127.0.0.1 (:class:`LaunchError`)."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        try:
+            s.bind(("127.0.0.1", int(port)))
+        except OSError as exc:
+            raise LaunchError(f"--foxglove {port}: the port is not free on 127.0.0.1 ({exc.strerror})") from None
 
 
 RECORDER_ACK_WINDOW = 10
@@ -559,6 +586,9 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     p.add_argument("--group", action="append", default=None, metavar="NODE,NODE[,...]",
                    help="with or without --compose: these nodes composed into one process (repeatable; nodes in "
                         "no group run alone), e.g. --group path_following,l1_autopilot,mixer")
+    p.add_argument("--foxglove", type=int, nargs="?", const=FOXGLOVE_DEFAULT_PORT, default=None, metavar="PORT",
+                   help="serve the graph live to Foxglove (WebSocket on 127.0.0.1:PORT, default "
+                        f"{FOXGLOVE_DEFAULT_PORT}; Foxglove: Open connection -> Foxglove WebSocket)")
     p.add_argument("--runner", choices=RUNNERS, default="auto", help="how nodes are started (default auto)")
     p.add_argument("--echo", action="store_true", help="also print every node's output, prefixed")
     p.add_argument("--install-ros-ws", action="store_true",
@@ -606,8 +636,12 @@ def _main(argv: Sequence[str] | None) -> int:
         if params is not None:
             check_params_file(params)
         check_mission(mission)
-        for n in (*GRAPH_NODES, *((CONTAINER,) if groups else ())):  # one clear error, before anything starts
-            node_command(n, args.runner)
+        if args.foxglove is not None and not 1 <= args.foxglove <= 65535:
+            raise LaunchError(f"--foxglove PORT must be 1..65535, got {args.foxglove}")
+        if args.foxglove is not None:
+            check_foxglove_port(args.foxglove)
+        for n in (*GRAPH_NODES, *((CONTAINER,) if groups else ()), *((FOXGLOVE,) if args.foxglove else ())):
+            node_command(n, args.runner)  # one clear error, before anything starts
         # the run directory is claimed atomically (os.mkdir): two launches in the same second never share one
         if args.out is not None:
             run_dir = claim_run_dir(path=args.out.resolve())
@@ -634,12 +668,16 @@ def _main(argv: Sequence[str] | None) -> int:
     env["ROS_DOMAIN_ID"] = str(monitor.domain_id)
     env["ROS_LOG_DIR"] = str(log_dir / "ros")
     specs = graph_specs(mission, run_dir, mode=args.mode, params=params, record=not args.no_record,
-                        runner=args.runner, policies=policies, monitor=monitor, groups=groups)
+                        runner=args.runner, policies=policies, monitor=monitor, groups=groups,
+                        foxglove_port=args.foxglove)
     echo = (lambda name, line: print(f"[{name}] {line}", file=sys.stderr, flush=True)) if args.echo else None
     print(f"[bb2-launch] mission {mission} | mode {args.mode} | ROS_DOMAIN_ID={monitor.domain_id} | "
           f"run {run_dir}", file=sys.stderr, flush=True)
     for g in groups:
         print(f"[bb2-launch] composed: process '{process_name(g)}' runs {', '.join(g)}", file=sys.stderr, flush=True)
+    if args.foxglove is not None:
+        print(f"[bb2-launch] foxglove: ws://127.0.0.1:{args.foxglove} (Foxglove: Open connection -> Foxglove "
+              "WebSocket)", file=sys.stderr, flush=True)
     sup = Supervisor(specs, log_dir, env=env, echo=echo)
     try:
         result = run_graph(sup, monitor, first=[s.name for s in specs if s.ready is not None],

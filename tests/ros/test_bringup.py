@@ -95,13 +95,20 @@ def test_ros2_launch_compose_true_runs_the_nodes_in_one_container_and_flies_the_
     container's exit (the simulator at the end) ends the launch; the recorded states equal the library runner's."""
     import numpy as np
 
+    import socket
+
     env, install, tmp = ws
+    with socket.socket() as s:  # and foxglove:=true: the live Foxglove bridge beside them, on a free port
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
     p = launch(ws, 216, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "compose:=true",
-               f"bag:={tmp / 'composed'}")
+               f"bag:={tmp / 'composed'}", "foxglove:=true", f"foxglove_port:={port}")
     out = finish(p, 180)
     assert p.returncode == 0, out[-3000:]
     assert "| composed" in out and "container exited (code 0): stopping the graph" in out, out[-3000:]
-    assert out.count("process started with pid") == 2, out[-3000:]  # the container and the recorder
+    assert f"| foxglove ws://127.0.0.1:{port}" in out and re.search(rf"serving \d+ topics on ws://127.0.0.1:{port}", out), \
+        out[-3000:]
+    assert out.count("process started with pid") == 3, out[-3000:]  # the container, the recorder, the bridge
     assert "process has died" not in out, out[-3000:]
     ref = {row[0]: row[1:] for row in library_trajectory(tmp / "short.yaml")}
     got = states(tmp / "composed")

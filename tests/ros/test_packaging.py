@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from bb2_tools.launcher import CONTAINER, GRAPH_NODES
+from bb2_tools.launcher import CONTAINER, FOXGLOVE, GRAPH_NODES
 
 REPO = Path(__file__).resolve().parents[2]
 WS = REPO / "bb2_ros_ws"
@@ -34,6 +34,7 @@ EXECUTABLES = {
     ("bb2_tools", "recorder"): "bb2_tools.recorder:main",
 }
 CONTAINER_EXECUTABLE = {("bb2_ros", "container"): "bb2_ros.container:main"}  # the composed nodes' process
+FOXGLOVE_EXECUTABLE = {("bb2_tools", "foxglove_bridge"): "bb2_tools.foxglove_live:main"}  # bb2-launch --foxglove
 
 # package.xml format 3 dependency tags (REP 149)
 DEP_TAGS = {"depend", "build_depend", "build_export_depend", "buildtool_depend", "buildtool_export_depend",
@@ -127,9 +128,10 @@ def test_console_scripts_are_the_graph_executables_and_resolve():
     for pkg in PACKAGES:
         for exe, ep in ws_tool.console_scripts(ws_tool.read_setup(WS / "src" / pkg)).items():
             found[(pkg, exe)] = ep
-    assert found == EXECUTABLES | CONTAINER_EXECUTABLE
+    assert found == EXECUTABLES | CONTAINER_EXECUTABLE | FOXGLOVE_EXECUTABLE
     assert {(n.package, n.executable): n.entry_point for n in GRAPH_NODES} == EXECUTABLES
     assert {(CONTAINER.package, CONTAINER.executable): CONTAINER.entry_point} == CONTAINER_EXECUTABLE
+    assert {(FOXGLOVE.package, FOXGLOVE.executable): FOXGLOVE.entry_point} == FOXGLOVE_EXECUTABLE
     for (pkg, exe), ep in found.items():
         module, func = ep.split(":")
         assert module.split(".")[0] == pkg, f"{pkg}/{exe} must run code of its own package"

@@ -30,6 +30,7 @@ setup(
     entry_points={
         'console_scripts': [
             'recorder = bb2_tools.recorder:main',
+            'foxglove_bridge = bb2_tools.foxglove_live:main',
         ],
     },
 )

@@ -12,6 +12,9 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
   params_file  the graph's params file (default share/bb2_bringup/config/bb2_graph.yaml)
   compose      true | false: the planner, the controllers and the simulator composed into one process
                (``ros2 run bb2_ros container``, one executor; bb2-launch --compose), the recorder alone
+  foxglove     true | false: serve every topic live to Foxglove (``ros2 run bb2_tools foxglove_bridge``, a
+               WebSocket on 127.0.0.1:foxglove_port; bb2-launch --foxglove)
+  foxglove_port  the Foxglove WebSocket port (default 8765)
 
 It starts what ``bb2-launch`` starts — simulator, planner, path_following, l1_autopilot, mixer and (record) the
 recorder, each its own process, the recorder and the planner at nice +10 — with the same parameters: the
@@ -52,6 +55,8 @@ ARGUMENTS = {
     "namespace": ("", "'' or NAME: nodes in /NAME, topics /NAME/bb2/... and /NAME/clock"),
     "params_file": (str(SHARE / "config" / "bb2_graph.yaml"), "the graph's ROS 2 params file"),
     "compose": ("false", "true | false: planner, controllers and simulator in one process (the container)"),
+    "foxglove": ("false", "true | false: serve every topic live to Foxglove (WebSocket on 127.0.0.1:foxglove_port)"),
+    "foxglove_port": ("8765", "the Foxglove WebSocket port"),
 }
 
 
@@ -96,7 +101,7 @@ def remappings(namespace: str, node: str) -> list[tuple[str, str]]:
     if node == "simulator":
         names = [t.name for t in CONTRACT if t.publisher == "simulator"] + [
             "/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress", "/bb2/recorder/ack"]
-    elif node == "recorder":
+    elif node in ("recorder", "foxglove_bridge"):
         names = [t.name for t in CONTRACT]
     else:
         names = list(NODE_TOPICS[node])
@@ -127,9 +132,10 @@ def container_arguments(nodes: list[tuple[str, dict]], params: list[str], ns: st
 
 
 def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, namespace: str, params_file: str,
-         stop_launch: bool = True, compose: bool = False) -> list:
+         stop_launch: bool = True, compose: bool = False, foxglove_port: int | None = None) -> list:
     """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch;
-    ``compose``: every node but the recorder in one container process)."""
+    ``compose``: every node but the recorder in one container process; ``foxglove_port``: the live Foxglove
+    server on that port)."""
     if time_mode not in ("lockstep", "realtime"):
         raise RuntimeError(f"launch argument time_mode must be lockstep or realtime, got {time_mode!r}")
     ns = namespace.strip("/")
@@ -146,6 +152,9 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     if record:
         assert bag is not None
         actions.append(node("bb2_tools", "recorder", {"bag_directory": str(bag), "use_sim_time": True},
+                            background=True))
+    if foxglove_port is not None:
+        actions.append(node("bb2_tools", "foxglove_bridge", {"port": int(foxglove_port), "use_sim_time": True},
                             background=True))
     sim_values = {"use_sim_time": False, "time_mode": time_mode, "exit_at_end": True, "end_at_progress": True,
                   "wait_for_readers": record,
@@ -182,12 +191,18 @@ def _graph(context):
     record = flag(a["record"], "record")
     bag = (Path(a["bag"]).expanduser().resolve() if a["bag"] else default_bag(a["bag_dir"], mission, a["namespace"])) \
         if record else None
+    fox = flag(a["foxglove"], "foxglove")
+    try:
+        fox_port = int(a["foxglove_port"]) if fox else None
+    except ValueError:
+        raise RuntimeError(f"launch argument foxglove_port must be a port number, got {a['foxglove_port']!r}") from None
     acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
-                params_file=a["params_file"], compose=flag(a["compose"], "compose"))
+                params_file=a["params_file"], compose=flag(a["compose"], "compose"), foxglove_port=fox_port)
     return [LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
                         + (" | composed" if flag(a["compose"], "compose") else "")
                         + (f" | namespace /{a['namespace'].strip('/')}" if a["namespace"] else "")
-                        + (f" | bag {bag}" if bag else " | not recorded")), *acts]
+                        + (f" | bag {bag}" if bag else " | not recorded")
+                        + (f" | foxglove ws://127.0.0.1:{fox_port}" if fox else "")), *acts]
 
 
 def generate_launch_description():

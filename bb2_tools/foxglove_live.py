@@ -1,0 +1,136 @@
+"""The graph live in Foxglove: a node serving every contract topic over the Foxglove WebSocket protocol.
+
+``bb2-launch MISSION --foxglove [PORT]`` starts it beside the graph (``foxglove:=true`` in the launch file); alone:
+``ros2 run bb2_tools foxglove_bridge --ros-args -p port:=8765`` or ``python -m bb2_tools.foxglove_live``.  In
+Foxglove: *Open connection* -> *Foxglove WebSocket* -> ``ws://127.0.0.1:8765``.
+
+It reads every topic of the contract (:func:`bb2_msgs_py.contract.select_topics`) with the QoS a reader of it asks
+for, as raw CDR, and logs each message unchanged on a Foxglove channel of the same name (message encoding ``cdr``,
+schema ``ros2msg``: the type's definition with its dependencies, as in our bags), with the log time the recorder
+gives it (the node's clock: the simulation time with ``use_sim_time``).  tf2_msgs is not in the wheels, so, as the
+recorder does for bags, it derives ``/tf`` (``odom -> base_link``) from ``/bb2/odom`` and ``/tf_static`` (the
+sensor mountings) from ``/bb2/sensors/mountings``: the 3-D panel shows the vehicle and its sensor frames.  The
+server is made by foxglove-sdk (:func:`foxglove.start_server`), which advertises every channel at start, so a client
+may subscribe before the first message.
+
+Parameters: ``port`` (default 8765; 0 = any free port, printed), ``host`` (default 127.0.0.1; 0.0.0.0 serves other
+machines), ``tf_from_odom`` (default true), ``topics`` (regular expressions of contract topics; default all).
+"""
+from __future__ import annotations
+
+import sys
+from typing import Any, Sequence
+
+from rclpy.node import Node
+
+from bb2_msgs_py.contract import TopicSpec, message_class, qos_profile, select_topics
+from bb2_ros.node_common import NodeConfigError, declare, node_options, run_node
+
+NODE_NAME = "foxglove_bridge"
+DEFAULT_PORT = 8765
+ODOM_TOPIC = "/bb2/odom"
+MOUNTINGS_TOPIC = "/bb2/sensors/mountings"
+
+
+def foxglove_schema(type_name: str) -> Any:
+    """The ``ros2msg`` schema of a ROS type for a Foxglove channel (the definition our bags embed)."""
+    import foxglove
+
+    from bb2_tools.bagfile import message_definition
+
+    return foxglove.Schema(name=type_name, encoding="ros2msg", data=message_definition(type_name).encode())
+
+
+class FoxgloveBridge(Node):
+    """Every contract topic (and the derived ``/tf``, ``/tf_static``) on a Foxglove WebSocket server."""
+
+    def __init__(self, argv: Sequence[str]):
+        super().__init__(NODE_NAME, **node_options())
+        import foxglove
+
+        from bb2_tools.recorder import TF_STATIC_TOPIC, TF_TOPIC, TF_TYPE
+
+        def port_ok(v: int) -> int:
+            if not 0 <= int(v) <= 65535:
+                raise NodeConfigError(f"port must be 0..65535, got {v}")
+            return int(v)
+
+        port = declare(self, "port", DEFAULT_PORT, "TCP port of the WebSocket server (0 = any free port)",
+                       check=port_ok)
+        host = str(declare(self, "host", "127.0.0.1", "address the server listens on (0.0.0.0: every interface)"))
+        self.tf = bool(declare(self, "tf_from_odom", True, "also serve /tf from /bb2/odom and /tf_static from "
+                                                           "/bb2/sensors/mountings"))
+        patterns = list(declare(self, "topics", [""], "regular expressions of contract topics to serve "
+                                                      "('' = all)"))
+        try:
+            self.specs: list[TopicSpec] = select_topics([p for p in patterns if p] or None)
+        except Exception as exc:  # ContractError: a pattern that matches no topic
+            raise NodeConfigError(f"topics: {exc}") from None
+        self.channels: dict[str, Any] = {}
+        for spec in self.specs:
+            self.channels[spec.name] = foxglove.Channel(spec.name, schema=foxglove_schema(spec.type),
+                                                        message_encoding="cdr")
+        names = {s.name for s in self.specs}
+        self.derived: dict[str, Any] = {}
+        if self.tf and ODOM_TOPIC in names:
+            self.derived[TF_TOPIC] = foxglove.Channel(TF_TOPIC, schema=foxglove_schema(TF_TYPE), message_encoding="cdr")
+        if self.tf and MOUNTINGS_TOPIC in names:
+            self.derived[TF_STATIC_TOPIC] = foxglove.Channel(TF_STATIC_TOPIC, schema=foxglove_schema(TF_TYPE),
+                                                             message_encoding="cdr")
+        try:
+            self.server = foxglove.start_server(name="bb2_sim", host=host, port=int(port))
+        except Exception as exc:  # e.g. the port is taken
+            raise NodeConfigError(f"cannot serve on {host}:{port}: {exc}") from None
+        self.counts: dict[str, int] = dict.fromkeys(self.channels, 0)
+        self.subs = [self.create_subscription(message_class(s.type), s.name, self._forwarder(s.name),
+                                              qos_profile(s.name, reader=True), raw=True) for s in self.specs]
+        self.url = f"ws://{host}:{self.server.port}"
+        print(f"{NODE_NAME}: serving {len(self.channels) + len(self.derived)} topics on {self.url} "
+              "(Foxglove: Open connection -> Foxglove WebSocket)", flush=True)
+
+    def _forwarder(self, topic: str):
+        channel = self.channels[topic]
+        clock = self.get_clock()
+        if topic == ODOM_TOPIC and "/tf" in self.derived:
+            from bb2_tools.recorder import tf_cdr_from_odometry_cdr
+
+            tf = self.derived["/tf"]
+
+            def forward_odom(data: bytes) -> None:
+                t = clock.now().nanoseconds
+                channel.log(data, log_time=t)
+                tf.log(tf_cdr_from_odometry_cdr(data), log_time=t)
+                self.counts[topic] += 1
+            return forward_odom
+        if topic == MOUNTINGS_TOPIC and "/tf_static" in self.derived:
+            from bb2_tools.recorder import tf_static_cdr_from_mountings_cdr
+
+            tf_static = self.derived["/tf_static"]
+
+            def forward_mountings(data: bytes) -> None:
+                t = clock.now().nanoseconds
+                channel.log(data, log_time=t)
+                try:
+                    tf_static.log(tf_static_cdr_from_mountings_cdr(data, t), log_time=t)
+                except (ValueError, KeyError, TypeError) as exc:
+                    self.get_logger().warning(f"{MOUNTINGS_TOPIC}: no /tf_static from it ({exc})")
+                self.counts[topic] += 1
+            return forward_mountings
+
+        def forward(data: bytes) -> None:
+            channel.log(data, log_time=clock.now().nanoseconds)
+            self.counts[topic] += 1
+        return forward
+
+    def close(self) -> None:
+        """Stop the server (clients see the connection close)."""
+        self.server.stop()
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Entry point (``ros2 run bb2_tools foxglove_bridge``)."""
+    return run_node(NODE_NAME, FoxgloveBridge, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
