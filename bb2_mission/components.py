@@ -119,6 +119,12 @@ def mission_components(m: Mission, model: Any = None) -> MissionComponents:
     return MissionComponents(m, model, Simulator(model, x0), stack, x0, probes, float(max_z))
 
 
+def broaching_limit(m: Mission, probes: HullProbes) -> float:
+    """The highest CG z (native, m) before the mission broaches: ``limits.max_cg_z_m``, else the sail top at the calm
+    surface."""
+    return float(m.limits.max_cg_z_m if m.limits.max_cg_z_m is not None else -probes.sail_top_m)
+
+
 def check_initial_state(m: Mission, surfaces: Any = None, probes: HullProbes | None = None) -> float:
     """Refuse a physically impossible start with one :class:`MissionError` line: the CG above the broaching
     limit (``limits.max_cg_z_m``; default the sail top at the calm surface, as the runner's broaching check) or
@@ -132,7 +138,7 @@ def check_initial_state(m: Mission, surfaces: Any = None, probes: HullProbes | N
         probes = HullProbes(surfaces)
     x0 = initial_state(m)
     where = str(m.source_file) if m.source_file else m.name
-    max_z = float(m.limits.max_cg_z_m if m.limits.max_cg_z_m is not None else -probes.sail_top_m)
+    max_z = broaching_limit(m, probes)
     if x0[2] > max_z:
         what = (f"puts the sail top {x0[2] + probes.sail_top_m:.2f} m above the calm surface (the sail top is "
                 f"{probes.sail_top_m:.2f} m above the CG)" if m.limits.max_cg_z_m is None

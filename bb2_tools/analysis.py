@@ -525,6 +525,7 @@ def _run_end(run: BagRun, tick: np.ndarray, mission: Any, probes: Any, cl: np.nd
              warnings: list[str]) -> RunEnd:
     """:class:`RunEnd` of a mission bag (already cut at progress 1 by :func:`_until_finished`)."""
     from bb2_mission import limit_event
+    from bb2_mission.components import broaching_limit
 
     if run.status_value("state", "bb2/simulator") == "diverged":
         return RunEnd("diverged", None, "diverged: " + (run.status_value("error", "bb2/simulator") or "(no detail)"))
@@ -534,13 +535,11 @@ def _run_end(run: BagRun, tick: np.ndarray, mission: Any, probes: Any, cl: np.nd
         return RunEnd("diverged", t, f"diverged at t = {t:.2f} s: the recorded state is not finite")
     if mission is not None:
         lim = mission.limits
-        if lim.max_cg_z_m is not None:
-            max_z = float(lim.max_cg_z_m)
-        elif probes is not None:
-            max_z = -float(probes.sail_top_m)
-        else:
+        if lim.max_cg_z_m is None and probes is None:
             max_z = math.inf
             warnings.append("no hull probes: broaching not checked")
+        else:
+            max_z = broaching_limit(mission, probes)
         with np.errstate(invalid="ignore"):
             broken = tick & ((np.isfinite(hull) & (hull < lim.min_hull_clearance_m)) | (run.x[:, 2] > max_z))
         if broken.any():

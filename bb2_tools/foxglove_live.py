@@ -28,8 +28,6 @@ from bb2_ros.node_common import NodeConfigError, declare, node_options, run_node
 
 NODE_NAME = "foxglove_bridge"
 DEFAULT_PORT = 8765
-ODOM_TOPIC = "/bb2/odom"
-MOUNTINGS_TOPIC = "/bb2/sensors/mountings"
 
 
 def foxglove_schema(type_name: str) -> Any:
@@ -48,7 +46,7 @@ class FoxgloveBridge(Node):
         super().__init__(NODE_NAME, **node_options())
         import foxglove
 
-        from bb2_tools.recorder import TF_STATIC_TOPIC, TF_TOPIC, TF_TYPE
+        from bb2_tools.recorder import DERIVED_TOPICS, TF_TYPE
 
         def port_ok(v: int) -> int:
             if not 0 <= int(v) <= 65535:
@@ -70,18 +68,15 @@ class FoxgloveBridge(Node):
         for spec in self.specs:
             self.channels[spec.name] = foxglove.Channel(spec.name, schema=foxglove_schema(spec.type),
                                                         message_encoding="cdr")
-        names = {s.name for s in self.specs}
-        self.derived: dict[str, Any] = {}
-        if self.tf and ODOM_TOPIC in names:
-            self.derived[TF_TOPIC] = foxglove.Channel(TF_TOPIC, schema=foxglove_schema(TF_TYPE), message_encoding="cdr")
-        if self.tf and MOUNTINGS_TOPIC in names:
-            self.derived[TF_STATIC_TOPIC] = foxglove.Channel(TF_STATIC_TOPIC, schema=foxglove_schema(TF_TYPE),
-                                                             message_encoding="cdr")
+        # source topic -> (derived tf topic, its channel), as the recorder derives them for bags
+        self.derived: dict[str, tuple[str, Any]] = {
+            s.name: (DERIVED_TOPICS[s.name], foxglove.Channel(DERIVED_TOPICS[s.name], schema=foxglove_schema(TF_TYPE),
+                                                              message_encoding="cdr"))
+            for s in self.specs if self.tf and s.name in DERIVED_TOPICS}
         try:
             self.server = foxglove.start_server(name="bb2_sim", host=host, port=int(port))
         except Exception as exc:  # e.g. the port is taken
             raise NodeConfigError(f"cannot serve on {host}:{port}: {exc}") from None
-        self.counts: dict[str, int] = dict.fromkeys(self.channels, 0)
         self.subs = [self.create_subscription(message_class(s.type), s.name, self._forwarder(s.name),
                                               qos_profile(s.name, reader=True), raw=True) for s in self.specs]
         self.url = f"ws://{host}:{self.server.port}"
@@ -89,37 +84,20 @@ class FoxgloveBridge(Node):
               "(Foxglove: Open connection -> Foxglove WebSocket)", flush=True)
 
     def _forwarder(self, topic: str):
+        from bb2_tools.recorder import derived_tf_cdr
+
         channel = self.channels[topic]
         clock = self.get_clock()
-        if topic == ODOM_TOPIC and "/tf" in self.derived:
-            from bb2_tools.recorder import tf_cdr_from_odometry_cdr
-
-            tf = self.derived["/tf"]
-
-            def forward_odom(data: bytes) -> None:
-                t = clock.now().nanoseconds
-                channel.log(data, log_time=t)
-                tf.log(tf_cdr_from_odometry_cdr(data), log_time=t)
-                self.counts[topic] += 1
-            return forward_odom
-        if topic == MOUNTINGS_TOPIC and "/tf_static" in self.derived:
-            from bb2_tools.recorder import tf_static_cdr_from_mountings_cdr
-
-            tf_static = self.derived["/tf_static"]
-
-            def forward_mountings(data: bytes) -> None:
-                t = clock.now().nanoseconds
-                channel.log(data, log_time=t)
-                try:
-                    tf_static.log(tf_static_cdr_from_mountings_cdr(data, t), log_time=t)
-                except (ValueError, KeyError, TypeError) as exc:
-                    self.get_logger().warning(f"{MOUNTINGS_TOPIC}: no /tf_static from it ({exc})")
-                self.counts[topic] += 1
-            return forward_mountings
+        derived = self.derived.get(topic)
 
         def forward(data: bytes) -> None:
-            channel.log(data, log_time=clock.now().nanoseconds)
-            self.counts[topic] += 1
+            t = clock.now().nanoseconds
+            channel.log(data, log_time=t)
+            if derived is not None:
+                try:
+                    derived[1].log(derived_tf_cdr(topic, data, t), log_time=t)
+                except (ValueError, KeyError, TypeError) as exc:
+                    self.get_logger().warning(f"{topic}: no {derived[0]} from it ({exc})")
         return forward
 
     def close(self) -> None:

@@ -308,9 +308,9 @@ absorb the delay; the planner only publishes the path), not the loop's."""
 
 
 CONTAINER = GraphNode("container", "bb2_ros", "container", "bb2_ros.container:main")
+"""The process that runs several nodes composed (:mod:`bb2_ros.container`)."""
 FOXGLOVE = GraphNode("foxglove_bridge", "bb2_tools", "foxglove_bridge", "bb2_tools.foxglove_live:main")
 """The live Foxglove WebSocket server (``--foxglove``): every graph topic, as :mod:`bb2_tools.foxglove_live`."""
-"""The process that runs several nodes composed (:mod:`bb2_ros.container`)."""
 COMPOSABLE = tuple(n.name for n in GRAPH_NODES if n.name in NODE_CLASSES)
 """The nodes ``--compose`` may put into one process (the container's, in start order; the recorder waits on its own
 wait set: a process of its own)."""
@@ -451,9 +451,12 @@ FOXGLOVE_DEFAULT_PORT = 8765
 
 
 def check_foxglove_port(port: int) -> None:
-    """Refuse, before anything starts, a Foxglove port already taken on 127.0.0.1 (:class:`LaunchError`)."""
+    """Refuse, before anything starts, a Foxglove port out of range or already taken on 127.0.0.1
+    (:class:`LaunchError`)."""
     import socket
 
+    if not 1 <= port <= 65535:
+        raise LaunchError(f"--foxglove PORT must be 1..65535, got {port}")
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         try:
             s.bind(("127.0.0.1", int(port)))
@@ -636,8 +639,6 @@ def _main(argv: Sequence[str] | None) -> int:
         if params is not None:
             check_params_file(params)
         check_mission(mission)
-        if args.foxglove is not None and not 1 <= args.foxglove <= 65535:
-            raise LaunchError(f"--foxglove PORT must be 1..65535, got {args.foxglove}")
         if args.foxglove is not None:
             check_foxglove_port(args.foxglove)
         for n in (*GRAPH_NODES, *((CONTAINER,) if groups else ()), *((FOXGLOVE,) if args.foxglove else ())):

@@ -159,6 +159,20 @@ def tf_static_cdr_from_mountings_cdr(data: bytes, stamp_ns: int) -> bytes:
     return encode(tf_static_from_mountings(doc, stamp_ns))
 
 
+DERIVED_TOPICS = {ODOM_TOPIC: TF_TOPIC, MOUNTINGS_TOPIC: TF_STATIC_TOPIC}
+"""Contract topic -> the tf topic derived from it (tf2_msgs is not in the wheels: the nodes cannot publish these)."""
+
+
+def derived_tf_cdr(topic: str, data: bytes, stamp_ns: int) -> bytes:
+    """The CDR of the tf topic derived from a message of ``topic`` (:data:`DERIVED_TOPICS`): ``/tf`` from
+    ``/bb2/odom``, ``/tf_static`` (stamped ``stamp_ns``) from ``/bb2/sensors/mountings``; ValueError, KeyError or
+    TypeError on a mountings description it cannot read.  What the recorder writes into bags and the Foxglove
+    bridge serves."""
+    if topic == ODOM_TOPIC:
+        return tf_cdr_from_odometry_cdr(data)
+    return tf_static_cdr_from_mountings_cdr(data, stamp_ns)
+
+
 def step_topics(topics: Sequence[TopicSpec]) -> set[str]:
     """The topics of ``topics`` the simulator publishes once per step: ``/bb2/state_native``, ``/clock`` and its
     sensor topics (odometry, IMU, depth, altitude, plane and propeller states; not the sensor suite's
@@ -223,7 +237,7 @@ class Recorder:
         # services, which spin_once serves from its own wait set); else one without parameter services
         self.node = node if node is not None else Node(node_name, start_parameter_services=False)
         # /tf from the odometry and /tf_static from the sensor mountings
-        self.tf_from_odom = tf_from_odom and any(t.name in (ODOM_TOPIC, MOUNTINGS_TOPIC) for t in topics)
+        self.tf_from_odom = tf_from_odom and any(t.name in DERIVED_TOPICS for t in topics)
         self.use_sim_time = bool(use_sim_time)
         self._sim_ns = 0  # the last /clock taken (ROS time 0 until the first, as rclpy's time source)
         self._deserialize = deserialize_message
@@ -360,19 +374,17 @@ class Recorder:
                 self.gaps.observe(spec.name, seq, t_ns, stream_source(spec.type, data), pub_ns)
             if self._ack_pub is not None and spec.name in self.acks.topics:
                 self.acks.received(spec.name, self._step_stamp_ns(spec.name, data))
-            if self.tf_from_odom and spec.name == ODOM_TOPIC:
-                if TF_TOPIC not in self.bag.topics:
-                    self.bag.add_topic(TF_TOPIC, TF_TYPE, offered_qos=[TF_QOS])
-                self.bag.write(TF_TOPIC, tf_cdr_from_odometry_cdr(data), t_ns, pub_ns)
-            if self.tf_from_odom and spec.name == MOUNTINGS_TOPIC:
+            derived = DERIVED_TOPICS.get(spec.name) if self.tf_from_odom else None
+            if derived is not None:
                 try:
-                    tf_static = tf_static_cdr_from_mountings_cdr(data, t_ns)
+                    tf = derived_tf_cdr(spec.name, data, t_ns)
                 except (ValueError, KeyError, TypeError) as exc:  # the mountings are in the bag as they came
-                    self.node.get_logger().warning(f"{MOUNTINGS_TOPIC}: no {TF_STATIC_TOPIC} from it ({exc})")
+                    self.node.get_logger().warning(f"{spec.name}: no {derived} from it ({exc})")
                 else:
-                    if TF_STATIC_TOPIC not in self.bag.topics:
-                        self.bag.add_topic(TF_STATIC_TOPIC, TF_TYPE, offered_qos=[TF_STATIC_QOS])
-                    self.bag.write(TF_STATIC_TOPIC, tf_static, t_ns, pub_ns)
+                    if derived not in self.bag.topics:
+                        self.bag.add_topic(derived, TF_TYPE,
+                                           offered_qos=[TF_QOS if derived == TF_TOPIC else TF_STATIC_QOS])
+                    self.bag.write(derived, tf, t_ns, pub_ns)
 
     def _step_stamp_ns(self, topic: str, data: bytes) -> int:
         """The step a per-step message belongs to: the state's time (its first element), else the stamp the

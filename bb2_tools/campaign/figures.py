@@ -17,8 +17,8 @@ from typing import Any
 
 from bb2_tools.campaign.errors import SpecError
 
-__all__ = ["MISSION_FIGURES", "MANEUVER_FIGURE_CLASSES", "resolve_collect", "figure_kinds", "mission_values",
-           "maneuver_values", "json_safe"]
+__all__ = ["MISSION_FIGURES", "END_STATUS", "MANEUVER_FIGURE_CLASSES", "resolve_collect", "figure_kinds",
+           "mission_values", "maneuver_values", "json_safe"]
 
 #: MissionSummary field -> what ``bb2-sim mission`` prints it as (the default ``collect`` of a mission, in order)
 MISSION_FIGURES: dict[str, str] = {
@@ -39,6 +39,9 @@ MISSION_FIGURES: dict[str, str] = {
     "virtual_time_end_s": "virtual time",
 }
 _MISSION_KINDS = {"completed": "bool", "end_reason": "str"}
+#: a mission's end reason (bb2_mission.EndReason value) -> the run's status; any other end is an error
+END_STATUS = {"finished": "ok", "duration": "ok", "grounded": "grounded", "broached": "broached",
+              "diverged": "diverged"}
 
 MANEUVER_FIGURE_CLASSES = {"self-propulsion": "SelfPropulsionFigures", "depth-heading": "DepthHeadingFigures",
                            "turning-circle": "TurningCircleFigures", "hzz": "ZigzagFigures",

@@ -18,35 +18,25 @@ from typing import Any
 
 import yaml
 
-from bb2_tools.campaign.figures import _mission_catalogue, json_safe
+from bb2_tools.campaign.figures import END_STATUS, _mission_catalogue, json_safe
 from bb2_tools.campaign.spec import CampaignSpec
 
-__all__ = ["END_STATUS", "graph_end", "graph_figures", "run_graph_once", "domain_for"]
+__all__ = ["graph_figures", "run_graph_once", "domain_for"]
 
 
 def domain_for(index: int) -> int:
     return 1 + int(index) % 101
 
 
-#: bb2-analyze's end reason -> the campaign status (the library runner's mapping, bb2_tools.campaign.worker)
-END_STATUS = {"finished": "ok", "duration": "ok", "grounded": "grounded", "broached": "broached",
-              "diverged": "diverged"}
-
-
-def graph_end(figures_json: Path) -> dict[str, Any]:
-    """bb2-analyze's ``end`` of the run (reason, t_s, completed, detail) from its figures.json."""
-    return dict(next(iter(json.loads(figures_json.read_text()).values())).get("end") or {})
-
-
-def graph_figures(figures_json: Path, names: tuple[str, ...]) -> dict[str, Any]:
+def graph_figures(figures_json: Path, names: tuple[str, ...]) -> tuple[dict[str, Any], dict[str, Any]]:
     """The collected names from bb2-analyze's figures.json (same names as the MissionSummary fields;
-    ``end_reason`` and ``completed`` from its ``end``)."""
+    ``end_reason`` and ``completed`` from its ``end``), and that ``end`` (reason, t_s, completed, message)."""
     run = next(iter(json.loads(figures_json.read_text()).values()))
     f = dict(run["figures"])
-    end = run.get("end") or {}
+    end = dict(run.get("end") or {})
     f.update({"end_reason": end.get("reason"), "completed": end.get("completed")})
     cat = _mission_catalogue()
-    return {n: json_safe(f.get(cat[n][0])) for n in names}
+    return {n: json_safe(f.get(cat[n][0])) for n in names}, end
 
 
 def _tail(p: subprocess.CompletedProcess) -> str:
@@ -81,8 +71,7 @@ def run_graph_once(spec: CampaignSpec, index: int, doc: dict[str, Any], graph_di
                          timeout=timeout_s)
     (run / "analyze.log").write_text((ana.stdout or "") + (ana.stderr or ""))
     try:
-        figures = graph_figures(analysis / "figures.json", spec.collect)
-        end = graph_end(analysis / "figures.json")
+        figures, end = graph_figures(analysis / "figures.json", spec.collect)
     except (OSError, ValueError, StopIteration, KeyError) as e:
         return "error", f"bb2-analyze exited {ana.returncode}, no figures ({type(e).__name__}: {e})", figures
     status = END_STATUS.get(str(end.get("reason")), "error")

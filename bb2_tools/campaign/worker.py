@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from bb2_tools.campaign.errors import SpecError
-from bb2_tools.campaign.figures import maneuver_values, mission_values
+from bb2_tools.campaign.figures import END_STATUS, maneuver_values, mission_values
 from bb2_tools.campaign.spec import CampaignSpec, column_value
 
 __all__ = ["STATUSES", "run_task", "run_one", "probe", "build_mission", "maneuver_settings_of"]
@@ -74,13 +74,11 @@ def run_one(spec: CampaignSpec, index: int, *, on_row: Callable[[Any], None] | N
 
 def _fly_mission(spec: CampaignSpec, doc: dict[str, Any], on_row: Callable[[Any], None] | None):
     from bb2_mission.runner import MissionRunner
-    from bb2_mission.summary import EndReason
 
     res = MissionRunner(build_mission(spec, doc)).run(on_row=on_row)
     s = res.summary
     kind = s.end_reason
-    status = {EndReason.FINISHED: "ok", EndReason.DURATION: "ok", EndReason.GROUNDED: "grounded",
-              EndReason.BROACHED: "broached", EndReason.DIVERGED: "diverged"}.get(kind, "error")
+    status = END_STATUS.get(str(kind), "error")
     message = _one_line(str(s.event)) if s.event is not None else ""
     return status, message, mission_values(s, spec.collect), res
 
