@@ -24,12 +24,12 @@ from rclpy.node import Node
 from bb2_control.errors import NonFiniteInputError
 from bb2_control.path_following import flow_to_body_rates
 from bb2_msgs_py import conversions as cv
-from bb2_msgs_py.contract import message_class, qos_profile, topic
+from bb2_msgs_py.contract import message_class, qos_profile
 
 from bb2_mission.components import build_mission_stack
-from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, declare, mission_only,
-                                 require_choice, require_positive, require_rate_stack, run_node, subscribe_state,
-                                 time_msg, node_options)
+from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
+                                 mission_only, node_options, require_choice, require_positive, require_rate_stack,
+                                 run_node, subscribe_state, time_msg)
 
 TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd",
           "/bb2/propeller/cmd", "/bb2/status")
@@ -55,7 +55,7 @@ class L1Autopilot(Node):
         self.states: dict[int, object] = {}
         self.rates: dict[int, tuple[float, float]] = {}
         self.counts = {"answered": 0, "replayed": 0, "rejected": 0, "errors": 0}
-        self.pub = {n: node.create_publisher(message_class(topic(n).type), n, qos_profile(n)) for n in TOPICS[3:5]}
+        self.pub = {n: contract_publisher(node, n) for n in TOPICS[3:5]}
         self.sub_rate = node.create_subscription(message_class("geometry_msgs/msg/Vector3Stamped"),
                                                  "/bb2/guidance/rate_cmd", self._on_rate,
                                                  qos_profile("/bb2/guidance/rate_cmd", reader=True))

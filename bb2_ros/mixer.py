@@ -20,8 +20,8 @@ from bb2_msgs_py import conversions as cv
 from bb2_msgs_py.contract import message_class, qos_profile
 
 from bb2_mission.components import build_mixer
-from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, declare, mission_only,
-                                 require_positive, run_node, node_options)
+from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
+                                 mission_only, node_options, require_positive, run_node)
 
 TOPICS = ("/bb2/autopilot/vh_cmd", "/bb2/planes/cmd", "/bb2/status")
 
@@ -39,8 +39,7 @@ class Mixer(Node):
         self.mixer = build_piece(self.mission, build_mixer)  # only the mixer: no hull, no path, no guidance
         self.cache = StampedCache()
         self.counts = {"answered": 0, "replayed": 0, "rejected": 0}
-        self.pub = node.create_publisher(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd",
-                                         qos_profile("/bb2/planes/cmd"))
+        self.pub = contract_publisher(node, "/bb2/planes/cmd")
         self.sub = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/autopilot/vh_cmd",
                                             self._on_vh, qos_profile("/bb2/autopilot/vh_cmd", reader=True))
         self.status = NodeStatus(node, "bb2/mixer", period, lambda: {

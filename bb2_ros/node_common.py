@@ -15,6 +15,10 @@ what every shell needs and nothing numerical:
   built by the mission layer's own builders (:mod:`bb2_mission.components`, the runner's factory), so the
   graph equals the library runner, with the same clear errors.
 * :class:`Throttle` -- wall-clock throttling of repeated warnings with a count of the suppressed ones.
+* :func:`contract_publisher` -- a publisher of a contract topic (its type and QoS) that counts what it
+  publishes; at exit :func:`run_nodes` writes the counts where the launcher asked (:data:`PUBLISHED_DIR_ENV`),
+  so losses the recorder's sequence numbers cannot show (a writer silent towards the recorder from some point
+  to the end) are still found (:func:`bb2_tools.bagfile.unrecorded_losses`).
 
 Topic remapping is the standard ROS 2 one: ``--ros-args -r /bb2/odom:=/other/odom`` (optionally
 ``node_name:/bb2/odom:=...``).  Every node publishes and subscribes on the absolute contract names of
@@ -35,6 +39,11 @@ from typing import Any, Callable, Iterable, Sequence
 EXIT_OK = 0
 EXIT_RUNTIME_ERROR = 1
 EXIT_BAD_INPUT = 2
+
+
+PUBLISHED_DIR_ENV = "BB2_PUBLISHED_DIR"
+"""Environment variable: a directory where each node process writes, as it exits, how many messages it published
+on each topic (``<process>-<pid>.json``: :func:`write_publication_counts`)."""
 
 
 class NodeConfigError(ValueError):
@@ -402,6 +411,65 @@ def node_options() -> dict[str, Any]:
     return dict(_node_options)
 
 
+_counting_publisher_class = None
+
+
+def counting_publisher_class():
+    """``rclpy.publisher.Publisher`` that counts the messages it publishes (``published``; raw bytes too): DDS
+    numbers a writer's samples 1, 2, 3, ..., so the count is the last publication sequence number it sent."""
+    global _counting_publisher_class
+    if _counting_publisher_class is None:
+        from rclpy.publisher import Publisher
+
+        class CountingPublisher(Publisher):
+            published = 0
+
+            def publish(self, msg) -> None:
+                super().publish(msg)
+                self.published += 1
+
+        _counting_publisher_class = CountingPublisher
+    return _counting_publisher_class
+
+
+def contract_publisher(node, name: str, msg_type=None):
+    """A publisher of contract topic ``name`` on ``node``: the contract's type (or ``msg_type``) and QoS,
+    counting what it publishes (:func:`counting_publisher_class`)."""
+    from bb2_msgs_py.contract import message_class, qos_profile, topic
+
+    return node.create_publisher(msg_type if msg_type is not None else message_class(topic(name).type), name,
+                                 qos_profile(name), publisher_class=counting_publisher_class())
+
+
+def publication_counts(nodes) -> dict[str, int]:
+    """Messages published per resolved topic name by the counting publishers of ``nodes`` (summed)."""
+    cls = counting_publisher_class()
+    out: dict[str, int] = {}
+    for node in nodes:
+        for pub in node.publishers:
+            if isinstance(pub, cls):
+                out[pub.topic_name] = out.get(pub.topic_name, 0) + int(pub.published)
+    return dict(sorted(out.items()))
+
+
+def write_publication_counts(process: str, nodes) -> None:
+    """If :data:`PUBLISHED_DIR_ENV` names a directory, write ``{"process", "pid", "published": {topic: n}}``
+    there as ``<process>-<pid>.json`` (atomically: a partial file is never read); best effort, never raises."""
+    import json
+
+    folder = os.environ.get(PUBLISHED_DIR_ENV)
+    if not folder:
+        return
+    try:
+        os.makedirs(folder, exist_ok=True)
+        path = os.path.join(folder, f"{process}-{os.getpid()}.json")
+        with open(path + ".tmp", "w", encoding="utf-8") as f:
+            json.dump({"process": process, "pid": os.getpid(), "published": publication_counts(nodes)}, f)
+        os.replace(path + ".tmp", path)
+    except Exception as exc:  # pragma: no cover - a count we cannot write is a check we cannot make
+        print(f"[{process}] cannot write its publication counts into {folder}: {exc}", file=sys.stderr)
+
+
 def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str] | None = None) -> int:
     """Init rclpy with ``args`` (``sys.argv`` when None), build ``factory(argv)``, spin until SIGINT/SIGTERM.
 
@@ -468,6 +536,7 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
         code = EXIT_RUNTIME_ERROR
     finally:
         watchdog.arm(code)  # from here on the process has TEARDOWN_S to be gone
+        write_publication_counts(process, [_node_of(sh) for sh in shells])
         for shell in shells:
             try:
                 if hasattr(shell, "close"):
@@ -490,13 +559,11 @@ class NodeStatus:
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.clock import Clock, ClockType
 
-        from bb2_msgs_py.contract import qos_profile
-
         self.node, self.name, self.values = node, name, values
         self.level, self.message = 0, "running"
-        self.pub = node.create_publisher(DiagnosticArray, "/bb2/status", qos_profile("/bb2/status"))
+        self.pub = contract_publisher(node, "/bb2/status", DiagnosticArray)
         # and on the standard /diagnostics (rqt_robot_monitor, diagnostic_aggregator)
-        self.pub_diagnostics = node.create_publisher(DiagnosticArray, "/diagnostics", qos_profile("/diagnostics"))
+        self.pub_diagnostics = contract_publisher(node, "/diagnostics", DiagnosticArray)
         self.timer = node.create_timer(period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def publish(self) -> None:

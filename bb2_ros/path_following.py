@@ -33,12 +33,12 @@ from rclpy.node import Node
 
 from bb2_control.errors import NonFiniteInputError, PathFollowingError
 from bb2_msgs_py import conversions as cv
-from bb2_msgs_py.contract import message_class, qos_profile, topic
+from bb2_msgs_py.contract import message_class, qos_profile
 
 from bb2_mission.components import build_mission_stack
-from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, declare, mission_only,
-                                 require_choice, require_positive, require_rate_stack, run_node, subscribe_state,
-                                 time_msg, node_options)
+from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
+                                 mission_only, node_options, require_choice, require_positive, require_rate_stack,
+                                 run_node, subscribe_state, time_msg)
 
 PROGRESS_SAMPLES = 2001  # arc-length table for the progress (linear interpolation: < 1e-4 m on the shipped paths)
 TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/path/bernstein", "/bb2/guidance/rate_cmd",
@@ -76,7 +76,7 @@ class PathFollowing(Node):
         self.finished = False
         self.rejoined_at_s = ""  # the sim time this node joined a run under way ('' = it started with the run)
         self._stepped = False
-        self.pub = {n: node.create_publisher(message_class(topic(n).type), n, qos_profile(n)) for n in TOPICS[3:6]}
+        self.pub = {n: contract_publisher(node, n) for n in TOPICS[3:6]}
         if self.path_source == "mission":
             self._build(self.mission.path)
         else:

@@ -15,9 +15,8 @@ from typing import Sequence
 from rclpy.node import Node
 
 from bb2_msgs_py import conversions as cv
-from bb2_msgs_py.contract import message_class, qos_profile, topic
-from bb2_ros.node_common import (NodeConfigError, NodeStatus, check_remaps, declare, mission_only,
-                                 require_positive, run_node, node_options)
+from bb2_ros.node_common import (NodeConfigError, NodeStatus, check_remaps, contract_publisher, declare, mission_only,
+                                 node_options, require_positive, run_node)
 
 TOPICS = ("/bb2/path", "/bb2/path/bernstein", "/bb2/status")
 
@@ -38,8 +37,7 @@ class Planner(Node):
         self.path = mission.path
         path_native = self.path.to_frame("native")
         _, p_native = path_native.sample(n)
-        pubs = {name: node.create_publisher(message_class(topic(name).type), name, qos_profile(name))
-                for name in TOPICS[:2]}
+        pubs = {name: contract_publisher(node, name) for name in TOPICS[:2]}
         pubs["/bb2/path"].publish(cv.path_message(0.0, p_native))
         pubs["/bb2/path/bernstein"].publish(cv.bernstein_message(self.path))
         self.pubs = pubs

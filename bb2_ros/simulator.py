@@ -105,13 +105,13 @@ from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimi
                                        StepDecision, TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
 from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS, mountings_json, sample_messages
-from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT, message_class, qos_profile, topic
+from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT, message_class, qos_profile
 from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.sensors.truth import truth_from_step
 from bb2_sim.state import VehicleState
 
-from bb2_ros.node_common import (NodeConfigError, Throttle, build_piece, check_remaps, declare, mission_only,
-                                 require_choice, require_positive, run_node, node_options)
+from bb2_ros.node_common import (NodeConfigError, Throttle, build_piece, check_remaps, contract_publisher, declare,
+                                 mission_only, node_options, require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics")
@@ -236,7 +236,7 @@ class Simulator(Node):
 
         # publishers / subscriptions (contract QoS)
         def pub(name):
-            return node.create_publisher(message_class(topic(name).type), name, qos_profile(name))
+            return contract_publisher(node, name)
 
         self.pub = {n: pub(n) for n in TOPICS_OUT if n != "/bb2/altitude" or self.terrain is not None}
         if self.suite is not None:

@@ -307,12 +307,22 @@ def gap_warnings(gaps: Sequence[Gap] | None, *, state_topic: str, used: Sequence
             affect = f"figures from {topic_name} are affected: computed over the samples that remain"
         else:
             affect = "not used by the figures: they are not affected"
-        where = "; ".join(f"the first {g.missing}, before t = {g.before_log_s:.3f} s" if g.head else
-                          f"{g.missing} between t = {g.after_log_s:.3f} s and {g.before_log_s:.3f} s (published "
-                          f"over {g.duration_s:.3f} s of wall time)" for g in gs)
+        where = "; ".join(_where(g) for g in gs)
         out.append(f"recording gap(s) on {topic_name}: {len(gs)} gap(s), {sum(g.missing for g in gs)} message(s) "
                    f"lost before reaching the recorder ({affect}): {where}")
     return out
+
+
+def _where(g: Gap) -> str:
+    """Where a gap is, in log time, for a warning."""
+    if g.unrecorded:
+        return (f"{g.missing} published and never recorded, " +
+                ("none recorded at all" if g.after_log_s is None else f"after t = {g.after_log_s:.3f} s") +
+                f" (its publishers counted {g.before_sequence}; the bag ends at t = {g.before_log_s:.3f} s)")
+    if g.head:
+        return f"the first {g.missing}, before t = {g.before_log_s:.3f} s"
+    return (f"{g.missing} between t = {g.after_log_s:.3f} s and {g.before_log_s:.3f} s (published over "
+            f"{g.duration_s:.3f} s of wall time)")
 
 
 def state_hole_warnings(t: np.ndarray, state_topic: str) -> list[str]:

@@ -36,7 +36,7 @@ import re
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import Any, Iterable, Iterator, Sequence
 
 import yaml
 from mcap.exceptions import McapError
@@ -46,6 +46,7 @@ from mcap.writer import CompressionType, Writer
 
 __all__ = ["BagError", "BagWriter", "BagReader", "RawMessage", "TopicInfo", "message_definition",
            "type_hash", "qos_entry", "qos_yaml", "read_metadata", "recover", "Gap", "SequenceGaps", "bag_gaps",
+           "PUBLICATION_COUNTS_FILE", "read_publication_counts", "unrecorded_losses",
            "gaps_by_topic", "GAPS_KEY", "SEQUENCE_KEY", "METADATA_VERSION", "ROS_DISTRO"]
 
 METADATA_VERSION = 9
@@ -561,6 +562,12 @@ class BagReader:
     def message_count(self) -> int:
         return sum(self._counts.values())
 
+    def end_time_ns(self) -> int:
+        """The last log time of the bag (0 when it holds no message)."""
+        if self._summary is not None and self._summary.statistics is not None:
+            return int(self._summary.statistics.message_end_time) if self.message_count else 0
+        return max((m.log_time_ns for m in self.raw_messages(file_order=True)), default=0)
+
     def topic_infos(self) -> list[TopicInfo]:
         """Topics with their offered QoS and type hash from the channel metadata."""
         out = []
@@ -698,7 +705,13 @@ class Gap:
     bag's log times (receive times: sim time with ``use_sim_time``; a stalled recorder logs its backlog at the time
     it resumes) and publish times (the DDS source timestamps, wall clock) of the two received messages, s (None
     before a head gap).  ``source``: the publisher, where a topic has several (the status name of a
-    ``/bb2/status``), else ''."""
+    ``/bb2/status``), else ''.
+
+    ``kind`` ``"unrecorded"``: messages the publishers counted (:data:`PUBLICATION_COUNTS_FILE`) that are neither in
+    the bag nor in a gap its sequence numbers show -- lost after the last message recorded (a writer gone silent
+    towards the recorder, a recorder stopped early or killed); ``after_*`` is the last recorded message of the
+    topic (0 / None: none recorded), ``before_sequence`` the number of messages published, ``before_log_s`` the
+    bag's last log time."""
 
     topic: str
     missing: int
@@ -709,11 +722,17 @@ class Gap:
     source: str = ""
     after_publish_s: float | None = None
     before_publish_s: float | None = None
+    kind: str = "gap"
 
     @property
     def head(self) -> bool:
         """Lost before the first message recorded (the publisher started before the recorder matched it)."""
-        return self.after_sequence == 0
+        return self.after_sequence == 0 and not self.unrecorded
+
+    @property
+    def unrecorded(self) -> bool:
+        """Counted by the publishers, placed by no sequence number (see the class)."""
+        return self.kind == UNRECORDED
 
     @property
     def duration_s(self) -> float:
@@ -727,6 +746,12 @@ class Gap:
 
     def describe(self) -> str:
         who = f" (from {self.source})" if self.source else ""
+        if self.unrecorded:
+            last = ("none was recorded" if self.after_log_s is None else
+                    f"the last recorded at log time {self.after_log_s:.3f} s")
+            return (f"{self.topic}: {self.missing} of the {self.before_sequence} message(s) its publishers counted "
+                    f"were never recorded and no later message shows the gap ({last}; the bag ends at "
+                    f"{self.before_log_s:.3f} s)")
         if self.head:
             return (f"{self.topic}{who}: the first {self.missing} message(s) published were not recorded (the first "
                     f"recorded, publication sequence number {self.before_sequence}, at log time "
@@ -734,6 +759,58 @@ class Gap:
         return (f"{self.topic}{who}: {self.missing} message(s) missing between log times {self.after_log_s:.3f} s "
                 f"and {self.before_log_s:.3f} s (published over {self.duration_s:.3f} s of wall time; publication "
                 f"sequence numbers {self.after_sequence + 1}..{self.before_sequence - 1})")
+
+
+UNRECORDED = "unrecorded"  # Gap.kind of a loss found from the publishers' counts
+
+PUBLICATION_COUNTS_FILE = "publication_counts.json"
+"""In a bag directory: the messages the graph's node processes published per topic, counted by each process as it
+exited (``{"published": {topic: n}, "processes": [...], "uncounted": [...]}``, written by ``bb2-launch``).
+:func:`bag_gaps` compares them with the bag: what the bag holds plus what its sequence numbers show lost must
+add up to what was published."""
+
+
+def read_publication_counts(bag_dir: Path) -> dict[str, int] | None:
+    """The ``published`` counts of :data:`PUBLICATION_COUNTS_FILE` in ``bag_dir``; None when there is no such
+    file (:class:`BagError` when it is not a count table)."""
+    path = Path(bag_dir) / PUBLICATION_COUNTS_FILE
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError) as exc:
+        raise BagError(f"{path}: not readable as publication counts: {exc}") from None
+    counts = doc.get("published") if isinstance(doc, dict) else None
+    if not isinstance(counts, dict) or not all(isinstance(k, str) and isinstance(v, int) and v >= 0
+                                               for k, v in counts.items()):
+        raise BagError(f"{path}: 'published' must map topic names to message counts")
+    return counts
+
+
+def unrecorded_losses(reader: "BagReader", published: dict[str, int], gaps: Sequence[Gap]) -> list[Gap]:
+    """Losses the sequence numbers cannot show: for each topic, the messages ``published`` (counted by the
+    publishers) less those the bag holds and those ``gaps`` already account for; one ``unrecorded``
+    :class:`Gap` per topic where that is positive."""
+    infos = {t.name: t for t in reader.topic_infos()}
+    seen: dict[str, int] = {}
+    for g in gaps:
+        seen[g.topic] = seen.get(g.topic, 0) + g.missing
+    end_ns = reader.end_time_ns() if infos else 0
+    out = []
+    for name, n in sorted(published.items()):
+        recorded = infos[name].message_count if name in infos else 0
+        lost = int(n) - recorded - seen.get(name, 0)
+        if lost <= 0:
+            continue
+        last = None
+        if recorded:
+            for m in reader.raw_messages([name], file_order=True):
+                if last is None or m.log_time_ns >= last.log_time_ns:
+                    last = m
+        out.append(Gap(name, lost, 0 if last is None else int(last.sequence), int(n),
+                       None if last is None else last.log_time_ns * 1e-9, end_ns * 1e-9,
+                       after_publish_s=None if last is None else last.publish_time_ns * 1e-9, kind=UNRECORDED))
+    return out
 
 
 MULTI_PUBLISHER_TYPES = ("diagnostic_msgs/msg/DiagnosticArray",)
@@ -841,9 +918,12 @@ def bag_gaps(reader: "BagReader") -> list[Gap] | None:
     custom = dict((reader.metadata or {}).get("custom_data") or {})
     if GAPS_KEY in custom:
         try:
-            return [Gap(**d) for d in json.loads(custom[GAPS_KEY])]
+            gaps = [Gap(**d) for d in json.loads(custom[GAPS_KEY])]
         except (ValueError, TypeError) as exc:
             raise BagError(f"{reader.mcap_path}: custom_data {GAPS_KEY} is not a gap list: {exc}") from None
-    if any(t.dds_sequence for t in reader.topic_infos()):
-        return SequenceGaps.from_reader(reader).gaps
-    return None
+    elif any(t.dds_sequence for t in reader.topic_infos()):
+        gaps = SequenceGaps.from_reader(reader).gaps
+    else:
+        return None
+    published = read_publication_counts(reader.mcap_path.parent)
+    return gaps if published is None else gaps + unrecorded_losses(reader, published, gaps)

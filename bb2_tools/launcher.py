@@ -59,6 +59,8 @@ from typing import Mapping, Sequence
 from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
 
 from bb2_ros.container import NODE_CLASSES
+from bb2_ros.node_common import PUBLISHED_DIR_ENV
+from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE
 from bb2_tools.graph_monitor import END_AT, GraphMonitor, claim_domain, format_status, free_domain_id
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
                                   Supervisor, parse_restart_policies)
@@ -484,19 +486,57 @@ def gap_lines(bag: Path) -> list[str]:
     if not gaps:
         return ["recording complete: no gaps (every message published while recording is in the bag)"]
     lines = [f"RECORDING GAPS: {len(gaps)} gap(s), {sum(g.missing for g in gaps)} message(s) lost before "
-             f"reaching the recorder (bag metadata custom_data bb2_gaps; bb2-analyze says what they affect):"]
+             f"reaching the recorder (bag metadata custom_data bb2_gaps and {PUBLICATION_COUNTS_FILE}; bb2-analyze "
+             "says what they affect):"]
     for topic, gs in sorted(gaps_by_topic(gaps).items(), key=lambda kv: -sum(g.missing for g in kv[1])):
-        mid = [g for g in gs if not g.head]
+        mid = [g for g in gs if not g.head and not g.unrecorded]
         head = sum(g.missing for g in gs if g.head)
-        text = f"  {topic}: {sum(g.missing for g in gs)} lost"
+        parts = []
         if mid:
             big = max(mid, key=lambda g: g.missing)
-            text += (f", {len(mid)} gap(s) during the run (largest {big.missing} at log time {big.after_log_s:.3f} s, "
-                     f"published over {big.duration_s:.3f} s of wall time)")
+            parts.append(f"{len(mid)} gap(s) during the run (largest {big.missing} at log time {big.after_log_s:.3f} "
+                         f"s, published over {big.duration_s:.3f} s of wall time)")
         if head:
-            text += f"{',' if mid else ''} {head} before its first recorded message"
+            parts.append(f"{head} before its first recorded message")
+        parts += [f"{g.missing} published and never recorded, " +
+                  ("none recorded at all" if g.after_log_s is None else
+                   f"after its last recorded message (log time {g.after_log_s:.3f} s)") +
+                  f" (its publishers counted {g.before_sequence})" for g in gs if g.unrecorded]
+        text = f"  {topic}: {sum(g.missing for g in gs)} lost, " + ", ".join(parts)
         lines.append(text)
     return lines
+
+
+def write_publication_counts(bag: Path, counts_dir: Path, exits: Sequence[NodeExit], topics: Sequence[str]) -> str:
+    """Merge the node processes' publication counts (``counts_dir``, :func:`bb2_ros.node_common.
+    write_publication_counts`) over ``topics`` (those the recorder records) into ``bag``'s
+    :data:`~bb2_tools.bagfile.PUBLICATION_COUNTS_FILE`, atomically; return a line for the summary when some
+    process left no count (killed: losses on its topics may go unseen), else ''."""
+    import json
+
+    records = []
+    for f in sorted(counts_dir.glob("*.json")):
+        try:
+            records.append(json.loads(f.read_text(encoding="utf-8")))
+        except (OSError, ValueError):  # a file a process could not finish: that process is uncounted
+            continue
+    wanted = set(topics)
+    published: dict[str, int] = {}
+    for r in records:
+        for name, n in dict(r.get("published") or {}).items():
+            if name in wanted:
+                published[name] = published.get(name, 0) + int(n)
+    node_exits = [e for e in exits if e.name not in ("recorder", FOXGLOVE.name)]
+    uncounted = ([f"{e.name} (attempt {e.attempt}: {e.cause})" for e in node_exits if e.returncode < 0]
+                 if len(records) < len(node_exits) else [])
+    doc = {"published": dict(sorted(published.items())), "processes": records, "uncounted": uncounted}
+    tmp = bag / (PUBLICATION_COUNTS_FILE + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    os.replace(tmp, bag / PUBLICATION_COUNTS_FILE)
+    if len(records) < len(node_exits):
+        who = ", ".join(uncounted) or f"{len(node_exits) - len(records)} process(es)"
+        return f"publication counts missing from {who}: a loss at the end of its topics cannot be checked"
+    return ""
 
 
 def recorder_bags(run_dir: Path, exits: Sequence[NodeExit]) -> list[Path]:
@@ -668,6 +708,7 @@ def _main(argv: Sequence[str] | None) -> int:
     env = dict(os.environ)
     env["ROS_DOMAIN_ID"] = str(monitor.domain_id)
     env["ROS_LOG_DIR"] = str(log_dir / "ros")
+    env[PUBLISHED_DIR_ENV] = str(log_dir / "published")  # each node process's counts, compared with the bag
     specs = graph_specs(mission, run_dir, mode=args.mode, params=params, record=not args.no_record,
                         runner=args.runner, policies=policies, monitor=monitor, groups=groups,
                         foxglove_port=args.foxglove)
@@ -690,13 +731,22 @@ def _main(argv: Sequence[str] | None) -> int:
     bags = recorder_bags(run_dir, result.exits) if not args.no_record else []
     for note in repair_bags(bags):
         print(f"[bb2-launch] {note}", file=sys.stderr)
+    counts_note = ""
+    if len(bags) == 1 and bags[0].is_dir():  # a restarted recorder splits the run: its bags are not compared
+        from bb2_msgs_py.contract import select_topics
+
+        try:
+            counts_note = write_publication_counts(bags[0], log_dir / "published", result.exits,
+                                                   [t.name for t in select_topics()])
+        except OSError as exc:
+            counts_note = f"cannot write {bags[0] / PUBLICATION_COUNTS_FILE}: {exc}"
     rtf = f"{result.rtf_overall:.1f}x" if result.rtf_overall else "--"
     t = f"{result.sim_time_s:.2f} s" if result.sim_time_s is not None else "--"
     print(f"[bb2-launch] {result.reason}: sim time {t}, RTF {rtf}, wall {result.wall_s:.1f} s, "
           f"exit code {result.exit_code}", file=sys.stderr)
     for b in bags:
         print(f"[bb2-launch] bag:   {b}", file=sys.stderr)
-        for line in gap_lines(b):
+        for line in gap_lines(b) + ([counts_note] if counts_note and b == bags[0] else []):
             print(f"[bb2-launch]        {line}", file=sys.stderr)
     print(f"[bb2-launch] logs:  {log_dir}", file=sys.stderr)
     if bags:

@@ -298,3 +298,37 @@ def test_gaps_are_written_with_the_sequence_numbers_and_survive_recovery(tmp_pat
         w2.add_topic("/bb2/mission/progress", "std_msgs/msg/Float64")
         w2.write("/bb2/mission/progress", serialize_message(msg(data=1.0)), 0)
     assert bag_gaps(BagReader(plain)) is None
+
+
+def test_publication_counts_show_the_losses_sequence_numbers_cannot(tmp_path):
+    """A writer whose last messages never reached the recorder leaves no gap in the sequence numbers; the
+    publishers' counts (publication_counts.json beside the bag) show it: bag_gaps adds one ``unrecorded`` gap per
+    topic, from its last recorded message to the end of the bag, and nothing where the counts add up (what the bag
+    holds plus the gaps its numbers show).  A malformed count file is a BagError, not a silent pass."""
+    from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE, Gap, bag_gaps
+
+    bag = tmp_path / "b"
+    msg = message_class("std_msgs/msg/Float64")
+    with BagWriter(bag) as w:
+        for name in ("/a", "/b"):
+            w.add_topic(name, "std_msgs/msg/Float64", dds_sequence=True)
+        for k, seq in enumerate([1, 2, 3, 4]):           # /a: 4 received of 10 published (6 after the last)
+            w.write("/a", serialize_message(msg(data=float(k))), k * 10**9, sequence=seq)
+        for k, seq in enumerate([1, 2, 5, 6, 7, 8, 9]):  # /b: a gap of 2 the numbers show, nothing after
+            w.write("/b", serialize_message(msg(data=float(k))), k * 10**9, sequence=seq)
+    # without the counts: only /b's gap is seen
+    assert [(g.topic, g.missing, g.kind) for g in bag_gaps(BagReader(bag))] == [("/b", 2, "gap")]
+    (bag / PUBLICATION_COUNTS_FILE).write_text(json.dumps({"published": {"/a": 10, "/b": 9, "/c": 3}}))
+    gaps = bag_gaps(BagReader(bag))
+    unrec = {g.topic: g for g in gaps if g.unrecorded}
+    assert sorted(unrec) == ["/a", "/c"], gaps          # /b adds up: 7 recorded + 2 in its gap
+    a = unrec["/a"]
+    assert (a.missing, a.after_sequence, a.before_sequence, a.after_log_s, a.before_log_s) == (6, 4, 10, 3.0, 6.0)
+    assert not a.head and "6 of the 10 message(s) its publishers counted were never recorded" in a.describe()
+    c = unrec["/c"]                                      # published, none of it recorded
+    assert (c.missing, c.after_log_s) == (3, None) and "none was recorded" in c.describe()
+    assert Gap(**json.loads(json.dumps(a.as_dict()))) == a  # survives the metadata's JSON
+    assert [(g.topic, g.missing) for g in gaps if not g.unrecorded] == [("/b", 2)]
+    (bag / PUBLICATION_COUNTS_FILE).write_text(json.dumps({"published": {"/a": "ten"}}))
+    with pytest.raises(BagError, match="message counts"):
+        bag_gaps(BagReader(bag))

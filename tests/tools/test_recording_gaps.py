@@ -107,6 +107,14 @@ def test_lockstep_canyon_with_the_recorder_stopped_5_s_records_every_step_of_eve
     for topic in STEP_TOPICS:
         assert stamps[topic] == grid - {n_steps * H_NS}, (topic, len(stamps[topic]), n_steps)
     assert not [g for g in _gaps(out) if g["topic"] in STATE_TOPICS + STEP_TOPICS], _gaps(out)
+    # and the node processes' own counts agree: every message they published on a recorded topic is in the bag
+    from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE, BagReader
+
+    counts = json.loads((out / PUBLICATION_COUNTS_FILE).read_text())
+    assert counts["uncounted"] == [] and len(counts["processes"]) == 5, counts
+    held = BagReader(out).message_counts
+    assert {t: held.get(t, 0) for t in counts["published"]} == counts["published"]
+    assert counts["published"]["/bb2/state_native"] >= n_steps + 1, counts["published"]
     log = (out / "logs" / "simulator.log").read_text()
     assert "waits for the recorder for" in log and "the recorder caught up" in log, log[-2000:]
 
@@ -167,4 +175,44 @@ def test_recorder_killed_stops_the_run_and_the_recovered_bag_tells_its_gaps(tmp_
     assert not r.truncated and r.message_counts.get("/bb2/state_native", 0) > 10, r.message_counts
     gaps = bag_gaps(r)
     assert gaps is not None  # the recovered bag still knows its sequence numbers
-    assert not [g for g in gaps if g.topic == "/bb2/state_native" and not g.head], gaps
+    # no gap inside what was kept; what the open chunk and the last moments lost is said from the counts
+    assert not [g for g in gaps if g.topic == "/bb2/state_native" and not g.head and not g.unrecorded], gaps
+    lost = sum(g.missing for g in gaps if g.topic == "/bb2/state_native" and g.unrecorded)
+    from bb2_tools.bagfile import read_publication_counts
+
+    published = read_publication_counts(out)["/bb2/state_native"]
+    assert published == r.message_counts["/bb2/state_native"] + lost, (published, lost)
+
+
+def test_a_recorder_stopped_early_loses_the_rest_of_the_run_and_that_is_said(tmp_path):
+    """The recorder stopped cleanly mid-run (SIGINT, policy ``ignore``) while the graph flies on in real time: its
+    bag is complete and its sequence numbers show no gap, yet everything published after it stopped is missing.
+    The node processes' counts show it: ``bb2-launch`` prints the loss per topic after the last recorded message,
+    ``publication_counts.json`` adds up with the bag, and ``bb2-analyze`` warns that the figures are affected."""
+    pytest.importorskip("rclpy")
+    from bb2_tools.bagfile import BagReader, read_publication_counts
+
+    mission = tmp_path / "straight_rt.yaml"
+    mission.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: straight_rt\nduration_s: 40\n")
+    params = tmp_path / "fast.yaml"
+    params.write_text("simulator:\n  ros__parameters:\n    rate_hz: 100.0\n")  # 5x real time: 8 s of wall time
+    out = tmp_path / "rt"
+    code, err = launch_with_fault(
+        mission, out, "--mode", "realtime", "--params", str(params), "--restart", "recorder=ignore",
+        fault=lambda: os.kill(node_pid("recorder", f"--out {out} "), signal.SIGINT), min_sim_s=5.0, timeout_s=300)
+    assert code == 0, err[-4000:]
+    assert "recording complete: no gaps" not in err, err[-3000:]
+    r = BagReader(out)
+    held = r.message_counts["/bb2/state_native"]
+    published = read_publication_counts(out)["/bb2/state_native"]
+    assert published == 40 * 20 + 1 and held < published - 200, (held, published)  # the run went on ~30 s of sim
+    line = re.search(r"/bb2/state_native: (\d+) lost, (\d+) published and never recorded, after its last recorded "
+                     r"message \(log time ([\d.]+) s\) \(its publishers counted (\d+)\)", err)
+    assert line, err[-3000:]
+    assert int(line[1]) == int(line[2]) == published - held and int(line[4]) == published, (line[0], held)
+    a = subprocess.run([PY, "-m", "bb2_tools.analyze", str(out), "--no-report"], capture_output=True, text=True,
+                       env=ros_env(), timeout=300, cwd=tmp_path)
+    assert a.returncode == 0, a.stderr[-2000:]
+    warn = [ln for ln in a.stdout.splitlines() if "recording gap(s) on /bb2/state_native" in ln]
+    assert len(warn) == 1 and "the figures are affected" in warn[0], a.stdout[-3000:]
+    assert f"{published - held} published and never recorded, after t = {line[3]}" in warn[0], warn
