@@ -517,9 +517,11 @@ def write_publication_counts(bag: Path, counts_dir: Path, exits: Sequence[NodeEx
     records = []
     for f in sorted(counts_dir.glob("*.json")):
         try:
-            records.append(json.loads(f.read_text(encoding="utf-8")))
+            record = json.loads(f.read_text(encoding="utf-8"))
         except (OSError, ValueError):  # a file a process could not finish: that process is uncounted
             continue
+        if record.get("process") != FOXGLOVE.name:  # the viewer publishes nothing of the graph's
+            records.append(record)
     wanted = set(topics)
     published: dict[str, int] = {}
     for r in records:

@@ -629,3 +629,37 @@ def test_domain_claims_keep_two_launches_off_one_domain(tmp_path):
     assert fd is not None
     for f in held + [fd]:
         os.close(f)
+
+
+def test_publication_counts_are_merged_over_the_recorded_topics_and_a_killed_process_is_named(tmp_path):
+    """``write_publication_counts``: the node processes' count files are summed per recorded topic into the bag's
+    publication_counts.json (the Foxglove viewer's own file set aside); a process killed by a signal left no file,
+    and the summary line names it; an unreadable (half-written) file counts as missing."""
+    from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE
+
+    counts = tmp_path / "published"
+    counts.mkdir()
+    for name, pid, pub in (("simulator", 1, {"/bb2/state_native": 10, "/bb2/status": 2, "/not_recorded": 4}),
+                           ("mixer", 2, {"/bb2/planes/cmd": 9, "/bb2/status": 3}),
+                           ("mixer", 3, {"/bb2/planes/cmd": 1}),           # its restart
+                           ("foxglove_bridge", 4, {})):
+        (counts / f"{name}-{pid}.json").write_text(json.dumps({"process": name, "pid": pid, "published": pub}))
+
+    def exit_(name, rc, attempt=0):
+        return S.NodeExit(name, rc, attempt, "shutdown", [], tmp_path / f"{name}.log", 1.0)
+
+    exits = [exit_("simulator", 0), exit_("mixer", -9), exit_("mixer", 0, 1), exit_("recorder", 0),
+             exit_("foxglove_bridge", 0)]
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    topics = ["/bb2/state_native", "/bb2/status", "/bb2/planes/cmd"]
+    assert L.write_publication_counts(bag, counts, exits, topics) == ""   # every node process left its counts
+    doc = json.loads((bag / PUBLICATION_COUNTS_FILE).read_text())
+    assert doc["published"] == {"/bb2/planes/cmd": 10, "/bb2/state_native": 10, "/bb2/status": 5}, doc
+    assert [r["process"] for r in doc["processes"]] == ["mixer", "mixer", "simulator"] and doc["uncounted"] == []
+    (counts / "mixer-2.json").write_text('{"process": "mix')              # killed while writing: half a file
+    note = L.write_publication_counts(bag, counts, exits, topics)
+    assert "publication counts missing from mixer (attempt 0: killed by SIGKILL)" in note, note
+    doc = json.loads((bag / PUBLICATION_COUNTS_FILE).read_text())
+    assert doc["published"]["/bb2/planes/cmd"] == 1 and doc["uncounted"] == ["mixer (attempt 0: killed by SIGKILL)"]
+    assert not list(bag.glob("*.tmp"))
