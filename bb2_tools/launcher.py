@@ -507,7 +507,7 @@ def gap_lines(bag: Path) -> list[str]:
     return lines
 
 
-def write_publication_counts(bag: Path, counts_dir: Path, exits: Sequence[NodeExit], topics: Sequence[str]) -> str:
+def merge_publication_counts(bag: Path, counts_dir: Path, exits: Sequence[NodeExit], topics: Sequence[str]) -> str:
     """Merge the node processes' publication counts (``counts_dir``, :func:`bb2_ros.node_common.
     write_publication_counts`) over ``topics`` (those the recorder records) into ``bag``'s
     :data:`~bb2_tools.bagfile.PUBLICATION_COUNTS_FILE`, atomically; return a line for the summary when some
@@ -738,7 +738,7 @@ def _main(argv: Sequence[str] | None) -> int:
         from bb2_msgs_py.contract import select_topics
 
         try:
-            counts_note = write_publication_counts(bags[0], log_dir / "published", result.exits,
+            counts_note = merge_publication_counts(bags[0], log_dir / "published", result.exits,
                                                    [t.name for t in select_topics()])
         except OSError as exc:
             counts_note = f"cannot write {bags[0] / PUBLICATION_COUNTS_FILE}: {exc}"

@@ -632,7 +632,7 @@ def test_domain_claims_keep_two_launches_off_one_domain(tmp_path):
 
 
 def test_publication_counts_are_merged_over_the_recorded_topics_and_a_killed_process_is_named(tmp_path):
-    """``write_publication_counts``: the node processes' count files are summed per recorded topic into the bag's
+    """``merge_publication_counts``: the node processes' count files are summed per recorded topic into the bag's
     publication_counts.json (the Foxglove viewer's own file set aside); a process killed by a signal left no file,
     and the summary line names it; an unreadable (half-written) file counts as missing."""
     from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE
@@ -653,12 +653,12 @@ def test_publication_counts_are_merged_over_the_recorded_topics_and_a_killed_pro
     bag = tmp_path / "bag"
     bag.mkdir()
     topics = ["/bb2/state_native", "/bb2/status", "/bb2/planes/cmd"]
-    assert L.write_publication_counts(bag, counts, exits, topics) == ""   # every node process left its counts
+    assert L.merge_publication_counts(bag, counts, exits, topics) == ""   # every node process left its counts
     doc = json.loads((bag / PUBLICATION_COUNTS_FILE).read_text())
     assert doc["published"] == {"/bb2/planes/cmd": 10, "/bb2/state_native": 10, "/bb2/status": 5}, doc
     assert [r["process"] for r in doc["processes"]] == ["mixer", "mixer", "simulator"] and doc["uncounted"] == []
     (counts / "mixer-2.json").write_text('{"process": "mix')              # killed while writing: half a file
-    note = L.write_publication_counts(bag, counts, exits, topics)
+    note = L.merge_publication_counts(bag, counts, exits, topics)
     assert "publication counts missing from mixer (attempt 0: killed by SIGKILL)" in note, note
     doc = json.loads((bag / PUBLICATION_COUNTS_FILE).read_text())
     assert doc["published"]["/bb2/planes/cmd"] == 1 and doc["uncounted"] == ["mixer (attempt 0: killed by SIGKILL)"]
