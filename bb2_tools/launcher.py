@@ -160,8 +160,9 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
               out=sys.stderr, handle_signals: bool = True, stall_timeout_s: float | None = None) -> RunResult:
     """Start the ``early`` specs at once, then ``first`` one by one (waiting for readiness), then the rest;
     supervise until the mission ends, a node fails, a signal arrives, ``timeout_s`` passes or (with
-    ``stall_timeout_s``) the sim time has not advanced for that many wall seconds since it last moved
-    (reported as stalled, exit 1); stop everything; return the result."""
+    ``stall_timeout_s``) the sim time has not advanced for that many wall seconds since it last moved, or has
+    not started that long after every process was started (reported as stalled, exit 1); stop everything;
+    return the result."""
     flag = _StopFlag()
     previous = {}
     if handle_signals and threading.current_thread() is threading.main_thread():
@@ -191,6 +192,7 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 sup.start([n for n in sup.order if n not in first and n not in early], interrupted=interrupted)
         except LaunchError as exc:
             reason, code = f"start-up failed: {exc}", 1
+        all_started = time.monotonic()  # a graph whose sim time never starts is stalled from here
         frozen: dict[str, float] = {}  # node -> wall time it was first seen stopped
         next_frozen_check = 0.0
         while not reason:
@@ -218,7 +220,11 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 reason, code = f"interrupted ({flag.signame})", 130
             elif timeout_s and now - t0 > timeout_s:
                 reason, code = f"timeout after {timeout_s:g} s", 1
-            elif stall_timeout_s and monitor is not None and monitor.sim_time_s is not None:
+            elif stall_timeout_s and monitor is not None and monitor.sim_time_s is None:
+                if now - all_started > stall_timeout_s:  # e.g. a simulator still waiting for a reader gone
+                    reason, code = (f"stalled: the sim time has not started {now - all_started:.0f} s of wall "
+                                    f"time after every node was started (--stall-timeout {stall_timeout_s:g})"), 1
+            elif stall_timeout_s and monitor is not None:
                 if monitor.sim_time_s != last_sim[0]:
                     last_sim = (monitor.sim_time_s, now)
                 elif now - last_sim[1] > stall_timeout_s:
@@ -621,7 +627,8 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     p.add_argument("--timeout", type=float, default=None, help="wall-clock limit in seconds (exit 1)")
     p.add_argument("--stall-timeout", type=float, default=DEFAULT_STALL_TIMEOUT_S, metavar="S",
                    help="stop the graph as stalled (exit 1) when the sim time has not advanced for S wall "
-                        f"seconds once stepping (default {DEFAULT_STALL_TIMEOUT_S:g}; 0 = never)")
+                        "seconds, or has not started S seconds after every node was started "
+                        f"(default {DEFAULT_STALL_TIMEOUT_S:g}; 0 = never)")
     p.add_argument("--ready-timeout", type=float, default=60.0,
                    help="seconds to wait for the recorder's subscriptions and (lockstep) the simulator's "
                         "publishers (default 60)")

@@ -40,6 +40,7 @@ p = argparse.ArgumentParser()
 p.add_argument("--name", required=True)
 p.add_argument("--dir", type=Path, required=True)
 p.add_argument("--clock", action="store_true")
+p.add_argument("--clock-for", type=float, default=0.0)  # the clock stands still after this many wall seconds
 p.add_argument("--progress-s", type=float, default=0.0)
 p.add_argument("--crash-after", type=float, default=0.0)
 p.add_argument("--crash-attempts", type=int, default=1)
@@ -62,6 +63,8 @@ def tick():
     global ticks
     ticks += 1
     el = time.monotonic() - t0
+    if a.clock_for:
+        el = min(el, a.clock_for)
     if ticks % 10 == 0:
         print(f"fake {a.name}: tick {ticks} attempt {attempt}", flush=True)
     if clock:
@@ -102,7 +105,8 @@ for s in cfg["nodes"]:
                              stop_stage=s.get("stage", 0), ready=ready, sigint_grace_s=s.get("grace", 10.0)))
 sup = Supervisor(specs, cfg["logs"], restart_delay_s=0.2)
 try:
-    res = run_graph(sup, mon, first=cfg.get("first", []), timeout_s=cfg.get("timeout"), status_period_s=1.0)
+    res = run_graph(sup, mon, first=cfg.get("first", []), timeout_s=cfg.get("timeout"), status_period_s=1.0,
+                    stall_timeout_s=cfg.get("stall"))
 finally:
     sup.stop(hurry=True)
     mon.close()
@@ -415,6 +419,28 @@ def test_killed_node_is_reported_and_graph_stops_nonzero_without_hanging(graph):
     assert (graph.dir / "a.clean").exists() and (graph.dir / "c.clean").exists()
     assert not any(_alive(pids[n]) for n in "abc")
     assert "fake b: up" in (graph.dir / "logs" / "b.log").read_text()
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("clock", ["stops", "never"])
+def test_a_graph_whose_sim_time_stops_or_never_starts_is_stopped_as_stalled(graph, clock):
+    """Issue 10, point 3: never left at 0x, whether the sim time stands still mid-run or never starts at all
+    (a lockstep simulator waiting for a recorder that is gone)."""
+    a = graph.node("a", "--clock", "--clock-for", "1.5") if clock == "stops" else graph.node("a")
+    t0 = time.monotonic()
+    p = graph.run([a, graph.node("b")], stall=3.0, timeout=120)
+    out, err = p.communicate(timeout=120)
+    res = _result(out)
+    assert p.returncode == 1 and res["code"] == 1, err
+    if clock == "stops":
+        assert res["reason"].startswith("stalled: sim time stuck at 15.00 s for "), res
+        assert res["sim_time"] == pytest.approx(15.0)
+    else:
+        assert res["reason"].startswith("stalled: the sim time has not started "), res
+        assert res["sim_time"] is None
+    assert "(--stall-timeout 3)" in res["reason"] and "timeout after" not in res["reason"]
+    assert time.monotonic() - t0 < 100  # stopped by the stall check, long before the 120 s timeout
+    assert all(e[2] == "shutdown" for e in res["exits"]), res["exits"]  # both stopped cleanly
 
 
 @pytest.mark.ros
