@@ -23,7 +23,10 @@ class MissionRow:
     q/r or depth/heading channels), the plane commands and the actuator angles the ROM applies over
     [t_n, t_n+1), the virtual time, the desired position p_d (native), the stack's path errors (horizontal > 0:
     vehicle left of the path; vertical > 0: above), the terrain under the CG and the CG and hull clearances
-    (NaN without terrain or off the grid)."""
+    (NaN without terrain or off the grid).  With ``navigation: sensors`` the state columns stay the truth, the
+    path errors are the true vehicle's (at the stack's virtual time), and the last two columns are the error of
+    the navigation estimate the stack flew on (position, m; heading, deg, estimate minus truth); NaN when the
+    stack flies on the truth."""
 
     t_s: float
     x_m: float
@@ -72,6 +75,8 @@ class MissionRow:
     terrain_z_m: float
     clearance_m: float
     hull_clearance_m: float
+    nav_position_error_m: float = float("nan")
+    nav_heading_error_deg: float = float("nan")
 
     def values(self) -> list[float]:
         """The row in :data:`MISSION_COLUMNS` order."""

@@ -12,6 +12,15 @@ stack's own commands (``cmd_d*_deg``, ``rps_cmd``) and the actuator outputs (``d
 
 The terrain checks (grounding, broaching) look at ``state_n`` before the ROM step; they never feed back
 into the loop, so a ROS graph that omits them still produces the same trajectory.
+
+With ``navigation: sensors`` the stack flies on the estimate of :class:`bb2_control.navigation.NavigationFilter`
+instead of ``state_n``: the mission's sensor suite samples the truth of every step (as the simulator node does),
+and the filter takes the samples of ``[t_n, t_n+1)`` after the ROM step, for the estimate at ``t_n+1``::
+
+    est_n   = nav.state(t_n)                                 # from the samples out of the sensors before t_n
+    out_n   = stack.step(est_n)
+    rec_n   = sim.step(...)
+    nav.update(suite.step(truth_n, truth_n+1))
 """
 from __future__ import annotations
 
@@ -84,6 +93,15 @@ class MissionRunner:
         self.event: MissionEvent | None = None
         self.end_reason = EndReason.RUNNING
         self._last_out: Any = None
+        self.suite = self.nav = None
+        if mission.navigation == "sensors":
+            from bb2_control.navigation import NavigationFilter
+            from bb2_mission.components import build_sensor_suite
+
+            self.suite = build_sensor_suite(mission, self.sim.model)
+            p = self.sim.model.params
+            self.nav = NavigationFilter(self.suite.config, self.c.x0, t0=self.sim.t, rho=float(p.rho),
+                                        g=float(p.g))
 
     # -- terrain
     def _clearances(self, x: np.ndarray) -> tuple[float, float, float]:
@@ -107,8 +125,9 @@ class MissionRunner:
         x = sim.x.copy()
         state = VehicleState.from_vector(sim.t, x)
         tz, cl, hull = self._clearances(x)
+        flown = self.nav.state(sim.t) if self.nav is not None else state
         try:
-            out = self.stack.step(state)
+            out = self.stack.step(flown)
         except (PathFollowingError, NonFiniteInputError) as e:
             event = MissionEvent(EndReason.CONTROL_ERROR, sim.t, x[0:3].copy(), str(e))
             self._end(event.kind, event)
@@ -123,7 +142,9 @@ class MissionRunner:
                                clamp_rps(out.rps, self._rps_limits))
             except NonFiniteStateError as e:
                 event = MissionEvent(EndReason.DIVERGED, sim.t, x[0:3].copy(), str(e))
-        row = self._row(state, x, out, rec, tz, cl, hull)
+        if rec is not None and self.nav is not None:
+            self._sense(state, x, rec)
+        row = self._row(state, x, out, rec, tz, cl, hull, flown)
         if event is not None:
             self._end(event.kind, event)
         elif out.finished:
@@ -134,7 +155,27 @@ class MissionRunner:
 
     def _end(self, reason: EndReason, event: MissionEvent | None) -> None:
         self.done, self.end_reason, self.event = True, reason, event
-    def _row(self, state: Any, x: np.ndarray, out: Any, rec: Any, tz: float, cl: float, hull: float) -> MissionRow:
+
+    def _sense(self, state: Any, x: np.ndarray, rec: Any) -> None:
+        """The sensor samples of the step just integrated (``[t_n, t_n+1)``) into the navigation filter, from the
+        truth exactly as the simulator node builds it."""
+        from bb2_sim.sensors.truth import truth_from_step
+
+        g = float(self.sim.model.params.g)
+        a = truth_from_step(state.t, x, rec.ev.xdot, self._cg_clearance(x[0:3]), g)
+        b = truth_from_step(self.sim.t, self.sim.x, None, self._cg_clearance(self.sim.x[0:3]), g)
+        self.nav.update(self.suite.step(a, b))
+
+    def _cg_clearance(self, p_native: np.ndarray) -> float:
+        if self.terrain is None:
+            return math.nan
+        try:
+            return float(self.terrain.clearance(p_native))
+        except ValueError:  # off the terrain grid
+            return math.nan
+
+    def _row(self, state: Any, x: np.ndarray, out: Any, rec: Any, tz: float, cl: float, hull: float,
+             flown: Any = None) -> MissionRow:
         from bb2_sim.frames import rotation_native
 
         v_e = rotation_native(x[3], x[4], x[5]) @ x[6:9]
@@ -144,6 +185,12 @@ class MissionRunner:
         cmd = out.planes_deg
         act = rec.act.planes_deg if rec is not None else NAN5
         xd, yd, zd = out.p_d_native
+        e_h, e_v = out.e_horizontal_m, out.e_vertical_m
+        nav_p = nav_psi = math.nan
+        if flown is not None and flown is not state:  # the true vehicle's path errors; the estimate's error
+            e_h, e_v = self.stack.path_errors(state, out.gamma)
+            nav_p = float(np.linalg.norm(flown.p_native - state.p_native))
+            nav_psi = math.degrees(math.remainder(float(flown.euler_native[2] - state.euler_native[2]), 2 * math.pi))
         return MissionRow(
             t_s=state.t, x_m=x[0], y_m=x[1], z_m=x[2],
             phi_deg=x[3] * RAD2DEG, theta_deg=x[4] * RAD2DEG, psi_deg=x[5] * RAD2DEG,
@@ -157,8 +204,9 @@ class MissionRunner:
             d1_deg=act[0], d2_deg=act[1], d3_deg=act[2], d4_deg=act[3], d5_deg=act[4],
             rps_cmd=out.rps, n_rps=rec.act.rps if rec is not None else math.nan,
             virtual_time_s=out.gamma, virtual_time_rate=out.gamma_dot, xd_m=xd, yd_m=yd, zd_m=zd,
-            e_horizontal_m=out.e_horizontal_m, e_vertical_m=out.e_vertical_m,
-            terrain_z_m=tz, clearance_m=cl, hull_clearance_m=hull)
+            e_horizontal_m=e_h, e_vertical_m=e_v,
+            terrain_z_m=tz, clearance_m=cl, hull_clearance_m=hull,
+            nav_position_error_m=nav_p, nav_heading_error_deg=nav_psi)
 
     def run(self, progress: Callable[[float], None] | None = None,
             on_row: Callable[[MissionRow], None] | None = None) -> MissionResult:

@@ -90,6 +90,10 @@ class MissionSummary:
     virtual_time_end_s: float
     wall_time_s: float
     event: MissionEvent | None = None
+    navigation: str = "truth"       #: what the stack flew on: truth | sensors (the navigation filter)
+    rms_nav_error_m: float = math.nan   #: position error of the navigation estimate (NaN on truth)
+    max_nav_error_m: float = math.nan
+    max_nav_heading_error_deg: float = math.nan
 
     @property
     def failed(self) -> bool:
@@ -104,6 +108,9 @@ class MissionSummary:
                f"   (closest point: RMS {self.rms_vertical_closest_m:.3f}, max {self.max_vertical_closest_m:.3f})",
                f"  horizontal path error  RMS {self.rms_horizontal_m:7.3f} m   max {self.max_horizontal_m:7.3f} m"
                f"   (closest point: RMS {self.rms_horizontal_closest_m:.3f}, max {self.max_horizontal_closest_m:.3f})"]
+        if self.navigation != "truth":
+            out.append(f"  navigation: {self.navigation}; position estimate error RMS {self.rms_nav_error_m:.3f} m, "
+                       f"max {self.max_nav_error_m:.3f} m; heading error max {self.max_nav_heading_error_deg:.3f} deg")
         if math.isfinite(self.min_clearance_m):
             out.append(f"  minimum ground clearance {self.min_clearance_m:.2f} m (CG, at t = "
                        f"{self.min_clearance_t_s:.1f} s); lowest hull point {self.min_hull_clearance_m:.2f} m")
@@ -167,6 +174,9 @@ def summarize(runner: Any, traj: Mapping[str, np.ndarray], path_native: Bernstei
         min_cl = t_cl = min_hull = math.nan
     t_end = float(runner.sim.t)
     g = np.asarray(traj["virtual_time_s"])
+    nav = getattr(m, "navigation", "truth")
+    rn, mn = rms_max(np.asarray(traj.get("nav_position_error_m", [])))
+    _, mpsi = rms_max(np.asarray(traj.get("nav_heading_error_deg", [])))
     return MissionSummary(
         mission=m.name, stack=runner.stack.name, adaptation=m.adaptation, mission_time_s=t_end,
         completed=runner.end_reason is EndReason.FINISHED, end_reason=runner.end_reason,
@@ -174,5 +184,6 @@ def summarize(runner: Any, traj: Mapping[str, np.ndarray], path_native: Bernstei
         rms_vertical_closest_m=rvc, max_vertical_closest_m=mvc, rms_horizontal_closest_m=rhc,
         max_horizontal_closest_m=mhc, min_clearance_m=min_cl, min_clearance_t_s=t_cl,
         min_hull_clearance_m=min_hull, virtual_time_end_s=float(g[-1]) if g.size else math.nan,
-        wall_time_s=wall_time_s, event=runner.event)
+        wall_time_s=wall_time_s, event=runner.event, navigation=nav, rms_nav_error_m=rn, max_nav_error_m=mn,
+        max_nav_heading_error_deg=mpsi)
 

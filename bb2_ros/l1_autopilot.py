@@ -26,7 +26,7 @@ from bb2_control.path_following import flow_to_body_rates
 from bb2_msgs_py import conversions as cv
 from bb2_msgs_py.contract import message_class, qos_profile
 
-from bb2_mission.components import build_mission_stack
+from bb2_mission.components import build_mission_stack, check_graph_navigation
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
                                  mission_only, node_options, require_choice, require_positive, require_rate_stack,
                                  run_node, subscribe_state, time_msg)
@@ -51,6 +51,7 @@ class L1Autopilot(Node):
         self.mission = mission_only(mission_file)
         self.stack = build_piece(self.mission, build_mission_stack)  # its inner loop and speed command run here
         require_rate_stack(self.stack)
+        build_piece(self.mission, check_graph_navigation)
         self.cache = StampedCache()
         self.states: dict[int, object] = {}
         self.rates: dict[int, tuple[float, float]] = {}

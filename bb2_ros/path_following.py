@@ -35,7 +35,7 @@ from bb2_control.errors import NonFiniteInputError, PathFollowingError
 from bb2_msgs_py import conversions as cv
 from bb2_msgs_py.contract import message_class, qos_profile
 
-from bb2_mission.components import build_mission_stack
+from bb2_mission.components import build_mission_stack, check_graph_navigation
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
                                  mission_only, node_options, require_choice, require_positive, require_rate_stack,
                                  run_node, subscribe_state, time_msg)
@@ -69,6 +69,7 @@ class PathFollowing(Node):
         check_remaps(node, argv, TOPICS, strict=strict)
 
         self.mission = mission_only(mission_file)
+        build_piece(self.mission, check_graph_navigation)
         self.stack = None
         self.length_m = float("nan")
         self.cache = StampedCache()

@@ -292,9 +292,11 @@ def check_mission(path: Path) -> None:
     except ImportError:
         return
     try:
-        from bb2_mission.components import check_initial_state
+        from bb2_mission.components import check_graph_navigation, check_initial_state
 
-        check_initial_state(load_mission(path))   # above the surface / inside the sea floor: refused up front
+        m = load_mission(path)
+        check_initial_state(m)     # above the surface / inside the sea floor: refused up front
+        check_graph_navigation(m)  # navigation: sensors is the library runner's only
     except (ValueError, OSError) as exc:
         msg = str(exc)
         raise LaunchError(msg if str(path) in msg else f"mission {path}: {msg}") from None

@@ -17,8 +17,8 @@ from typing import Any
 
 from bb2_tools.campaign.errors import SpecError
 
-__all__ = ["MISSION_FIGURES", "END_STATUS", "MANEUVER_FIGURE_CLASSES", "resolve_collect", "figure_kinds",
-           "mission_values", "maneuver_values", "json_safe"]
+__all__ = ["MISSION_FIGURES", "NAVIGATION_FIGURES", "END_STATUS", "MANEUVER_FIGURE_CLASSES", "resolve_collect",
+           "figure_kinds", "mission_values", "maneuver_values", "json_safe"]
 
 #: MissionSummary field -> what ``bb2-sim mission`` prints it as (the default ``collect`` of a mission, in order)
 MISSION_FIGURES: dict[str, str] = {
@@ -37,6 +37,12 @@ MISSION_FIGURES: dict[str, str] = {
     "min_clearance_t_s": "minimum ground clearance ... at t",
     "min_hull_clearance_m": "lowest hull point",
     "virtual_time_end_s": "virtual time",
+}
+#: MissionSummary fields a mission flown with ``navigation: sensors`` adds (collected when named; NaN on the truth)
+NAVIGATION_FIGURES: dict[str, str] = {
+    "rms_nav_error_m": "navigation: position estimate error RMS",
+    "max_nav_error_m": "navigation: position estimate error max",
+    "max_nav_heading_error_deg": "navigation: heading error max",
 }
 _MISSION_KINDS = {"completed": "bool", "end_reason": "str"}
 #: a mission's end reason (bb2_mission.EndReason value) -> the run's status; any other end is an error
@@ -75,8 +81,8 @@ def _maneuver_catalogue(maneuver: str) -> dict[str, tuple[str, float, str]]:
 
 
 def _mission_catalogue() -> dict[str, tuple[str, float, str]]:
-    out = {f: (f, 1.0, _MISSION_KINDS.get(f, "float")) for f in MISSION_FIGURES}
-    for f in MISSION_FIGURES:
+    out = {f: (f, 1.0, _MISSION_KINDS.get(f, "float")) for f in (*MISSION_FIGURES, *NAVIGATION_FIGURES)}
+    for f in (*MISSION_FIGURES, *NAVIGATION_FIGURES):
         for suf in ("_m", "_s"):
             if f.endswith(suf):
                 out.setdefault(f[: -len(suf)], (f, 1.0, _MISSION_KINDS.get(f, "float")))

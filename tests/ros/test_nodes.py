@@ -280,3 +280,17 @@ def test_unknown_remap_is_reported_or_refused(graph):
     ok.send_signal(signal.SIGINT)
     out, _ = ok.communicate(timeout=10)
     assert ok.returncode == 0 and "matches no topic of node 'mixer'" in out
+
+
+def test_controllers_refuse_a_mission_that_navigates_on_sensors(graph, tmp_path):
+    """Issue 12: the graph's controllers read the simulator's exact state, so ``navigation: sensors`` is refused
+    at start with the reason (exit 2), never flown on the truth without a word."""
+    _, start, mission = graph
+    on_sensors = tmp_path / "on_sensors.yaml"
+    on_sensors.write_text(f"extends: {mission}\nsensors: tactical\nnavigation: sensors\n")
+    procs = {m: start(m, "-p", f"mission_file:={on_sensors}") for m in ("bb2_ros.path_following",
+                                                                         "bb2_ros.l1_autopilot")}
+    for m, p in procs.items():
+        out, _ = p.communicate(timeout=60)
+        assert p.returncode == 2, (m, out)
+        assert "navigation: sensors is not flown by the ROS graph yet" in out, (m, out)
