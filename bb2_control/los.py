@@ -77,19 +77,6 @@ class LineOfSightDepth(PathFollowingLaw):
     def reset(self) -> None:
         self.gamma = self._gamma0
 
-    def path_errors(self, p_I: np.ndarray, gamma: float) -> tuple[float, float]:
-        """(y_T, z - z_d) of position ``p_I`` (m, I) at virtual time ``gamma``, as :meth:`step` computes them (no
-        state changes)."""
-        p = np.asarray(p_I, dtype=float)
-        gam = float(np.clip(gamma, self.path.t0, self.path.tf))
-        p_d = np.asarray(self.path(gam), dtype=float)
-        dp = np.asarray(self.path.velocity(gam), dtype=float)
-        h = math.hypot(dp[0], dp[1])
-        if h == 0.0:
-            raise PathFollowingError("LOS guidance: the path has no horizontal tangent here")
-        t2 = np.array([-dp[1], dp[0]]) / h
-        return float(t2 @ (p[:2] - p_d[:2])), float(p[2] - p_d[2])
-
     def step(self, p_I: np.ndarray, heading: float, surge: float) -> LOSOutput:
         """Position (m, I), continuous bow heading (rad, CCW from x_I), surge (m/s, forward > 0)."""
         p = np.asarray(p_I, dtype=float)

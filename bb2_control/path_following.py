@@ -233,14 +233,6 @@ class PathFollowing3D(PathFollowingLaw):
         self._R_TI_prev, self._R_DT_prev = R_TI, R_DT
         return out
 
-    def path_errors(self, p_I: np.ndarray, gamma: float) -> tuple[float, float]:
-        """(y_T, z_T) of position ``p_I`` (m, I) in the path frame at virtual time ``gamma``, as :meth:`step`
-        computes them (no state changes): the path error of another position than the one the law flies on."""
-        gam = float(np.clip(gamma, self.path.t0, self.path.tf))
-        p_T = path_frame(np.asarray(self.path.velocity(gam), float)).T @ (np.asarray(p_I, float)
-                                                                          - np.asarray(self.path(gam), float))
-        return float(p_T[1]), float(p_T[2])
-
     def _analytic_omega_T(self, gam: float, dp: np.ndarray, gamma_dot: float) -> np.ndarray:
         """Exact angular velocity of the horizontal-normal frame in T (SPEC 3.2)."""
         ddp = np.asarray(self.path.acceleration(gam), dtype=float)

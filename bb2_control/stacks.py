@@ -207,12 +207,6 @@ class Stack:
         self._last = out
         return out
 
-    def path_errors(self, state: VehicleState, gamma: float) -> tuple[float, float]:
-        """(horizontal, vertical) path error of ``state`` at virtual time ``gamma``, m, with the signs of
-        :class:`ControlOutput` (no state changes): e.g. the true vehicle's error while the stack flies on a
-        navigation estimate."""
-        return self.guidance.path_errors(self._M.T @ np.asarray(state.p_native, float), gamma)
-
     def _step(self, state: VehicleState, x: dict[str, Any]) -> ControlOutput:  # pragma: no cover
         raise NotImplementedError
 

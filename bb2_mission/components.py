@@ -26,7 +26,7 @@ from bb2_mission.schema import RPS_PATH_MEAN_SPEED, Mission, MissionError, _reso
 
 __all__ = ["MissionComponents", "HullProbes", "mission_components", "check_initial_state", "stack_overrides",
            "initial_state", "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer",
-           "build_sensor_suite", "sensor_spec", "check_graph_navigation"]
+           "build_sensor_suite", "sensor_spec"]
 
 
 def stack_overrides(m: Mission) -> dict[str, Any]:
@@ -156,18 +156,6 @@ def check_initial_state(m: Mission, surfaces: Any = None, probes: HullProbes | N
 
 
 # ------------------------------------------------------------------------------------------ one piece each
-def check_graph_navigation(m: Mission) -> None:
-    """Refuse, with one :class:`MissionError` line, a mission the ROS graph would not fly as it says: the graph's
-    controllers read the simulator's exact state, so ``navigation: sensors`` (the stack on the navigation filter)
-    is flown by the library runner only.  Called by ``bb2-launch`` before anything starts and by the controller
-    nodes."""
-    if m.navigation != "truth":
-        where = str(m.source_file) if m.source_file else m.name
-        raise MissionError(f"{where}: navigation: {m.navigation} is not flown by the ROS graph yet (its controllers "
-                           f"read the simulator's exact state); fly it with `bb2-sim mission`, or fly the graph "
-                           f"with navigation: truth and read /bb2/sensors/* with your own autopilot")
-
-
 def build_model(m: Mission, environment: Any = None) -> Any:
     """The ROM of mission ``m`` (hull, profile, sea and current; ``environment`` overrides the mission's)."""
     from bb2_sim.model import BB2Model

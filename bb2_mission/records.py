@@ -24,9 +24,9 @@ class MissionRow:
     [t_n, t_n+1), the virtual time, the desired position p_d (native), the stack's path errors (horizontal > 0:
     vehicle left of the path; vertical > 0: above), the terrain under the CG and the CG and hull clearances
     (NaN without terrain or off the grid).  With ``navigation: sensors`` the state columns stay the truth, the
-    path errors are the true vehicle's (at the stack's virtual time), and the last two columns are the error of
-    the navigation estimate the stack flew on (position, m; heading, deg, estimate minus truth); NaN when the
-    stack flies on the truth."""
+    stack's path errors are those it flew on (of its navigation estimate: the true vehicle's are the summary's
+    closest-point errors), and the last two columns are the error of that estimate (position, m; heading, deg,
+    estimate minus truth); NaN when the stack flies on the truth."""
 
     t_s: float
     x_m: float

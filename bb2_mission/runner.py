@@ -185,10 +185,8 @@ class MissionRunner:
         cmd = out.planes_deg
         act = rec.act.planes_deg if rec is not None else NAN5
         xd, yd, zd = out.p_d_native
-        e_h, e_v = out.e_horizontal_m, out.e_vertical_m
         nav_p = nav_psi = math.nan
-        if flown is not None and flown is not state:  # the true vehicle's path errors; the estimate's error
-            e_h, e_v = self.stack.path_errors(state, out.gamma)
+        if flown is not None and flown is not state:  # the estimate's error
             nav_p = float(np.linalg.norm(flown.p_native - state.p_native))
             nav_psi = math.degrees(math.remainder(float(flown.euler_native[2] - state.euler_native[2]), 2 * math.pi))
         return MissionRow(
@@ -204,7 +202,7 @@ class MissionRunner:
             d1_deg=act[0], d2_deg=act[1], d3_deg=act[2], d4_deg=act[3], d5_deg=act[4],
             rps_cmd=out.rps, n_rps=rec.act.rps if rec is not None else math.nan,
             virtual_time_s=out.gamma, virtual_time_rate=out.gamma_dot, xd_m=xd, yd_m=yd, zd_m=zd,
-            e_horizontal_m=e_h, e_vertical_m=e_v,
+            e_horizontal_m=out.e_horizontal_m, e_vertical_m=out.e_vertical_m,
             terrain_z_m=tz, clearance_m=cl, hull_clearance_m=hull,
             nav_position_error_m=nav_p, nav_heading_error_deg=nav_psi)
 

@@ -191,6 +191,11 @@ CONTRACT: tuple[TopicSpec, ...] = (
               "[t s, x y z m, phi theta psi rad, u v w m/s, p q r rad/s] (float64, exact)", SIM,
               (PATHF, AUTOPILOT, RECORDER),
               "exact ROM state of every step, reliable: what the controllers run on and the lockstep trigger"),
+    TopicSpec("/bb2/nav/state_native", "std_msgs/msg/Float64MultiArray", "command", FRAME_NATIVE,
+              "[t s, x12 as /bb2/state_native] (float64): the navigation estimate", SIM,
+              (PATHF, AUTOPILOT, RECORDER),
+              "with navigation: sensors, the navigation filter's estimate at every step (bb2_control.navigation, "
+              "from the sensor suite's samples), published with /bb2/state_native: what the controllers fly on"),
     TopicSpec("/bb2/path", "nav_msgs/msg/Path", "latched", "map", "m (ENU), quaternion (path tangent)",
               PLANNER, (PATHF, RECORDER), "Bernstein path samples"),
     TopicSpec("/bb2/path/bernstein", "std_msgs/msg/Float64MultiArray", "latched", "dim[1].label (path frame)",

@@ -26,13 +26,13 @@ from bb2_control.path_following import flow_to_body_rates
 from bb2_msgs_py import conversions as cv
 from bb2_msgs_py.contract import message_class, qos_profile
 
-from bb2_mission.components import build_mission_stack, check_graph_navigation
+from bb2_mission.components import build_mission_stack
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
                                  mission_only, node_options, require_choice, require_positive, require_rate_stack,
-                                 run_node, subscribe_state, time_msg)
+                                 run_node, state_topic, subscribe_state, time_msg)
 
 TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd",
-          "/bb2/propeller/cmd", "/bb2/status")
+          "/bb2/propeller/cmd", "/bb2/status", "/bb2/nav/state_native")
 KEEP = 20  # pending inputs kept per kind (stamps not yet paired)
 
 
@@ -51,7 +51,6 @@ class L1Autopilot(Node):
         self.mission = mission_only(mission_file)
         self.stack = build_piece(self.mission, build_mission_stack)  # its inner loop and speed command run here
         require_rate_stack(self.stack)
-        build_piece(self.mission, check_graph_navigation)
         self.cache = StampedCache()
         self.states: dict[int, object] = {}
         self.rates: dict[int, tuple[float, float]] = {}
@@ -60,7 +59,7 @@ class L1Autopilot(Node):
         self.sub_rate = node.create_subscription(message_class("geometry_msgs/msg/Vector3Stamped"),
                                                  "/bb2/guidance/rate_cmd", self._on_rate,
                                                  qos_profile("/bb2/guidance/rate_cmd", reader=True))
-        self.sub_state = subscribe_state(node, source, self._on_state)
+        self.sub_state = subscribe_state(node, source, self._on_state, state_topic(self.mission))
         self.status = NodeStatus(node, "bb2/l1_autopilot", period, lambda: {
             "mission": self.mission.name, "stack": self.stack.name, "state_source": source,
             "adaptation": str(self.stack.adaptation).lower(), **{k: str(v) for k, v in self.counts.items()}})

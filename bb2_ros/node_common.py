@@ -650,23 +650,37 @@ class StateSource(StrEnum):
 STATE_SOURCES = tuple(s.value for s in StateSource)
 
 
-def subscribe_state(node, source: str, callback: Callable[[Any, int], None]):
-    """Subscribe to the vehicle state: ``native`` = ``/bb2/state_native`` (exact, reliable; the lockstep
-    trigger) or ``odometry`` = ``/bb2/odom`` (REP-103, sensor QoS, quaternion -> Euler rounding; for
-    external tools / HIL).  ``callback(state: VehicleState, stamp_ns)``."""
+NAV_STATE_TOPIC = "/bb2/nav/state_native"
+
+
+def state_topic(mission) -> str:
+    """The native state topic a controller flies on for ``mission``: ``/bb2/state_native`` (the truth, as the
+    paper), or ``/bb2/nav/state_native`` (the navigation filter's estimate) with ``navigation: sensors``."""
+    return NAV_STATE_TOPIC if getattr(mission, "navigation", "truth") == "sensors" else "/bb2/state_native"
+
+
+def subscribe_state(node, source: str, callback: Callable[[Any, int], None], native_topic: str = "/bb2/state_native"):
+    """Subscribe to the vehicle state: ``native`` = ``native_topic`` (``/bb2/state_native``: exact, reliable; the
+    lockstep trigger; or the navigation estimate, :func:`state_topic`) or ``odometry`` = ``/bb2/odom``
+    (REP-103, sensor QoS, quaternion -> Euler rounding; for external tools / HIL: the truth, so refused with a
+    navigation estimate).  ``callback(state: VehicleState, stamp_ns)``."""
     from bb2_msgs_py import conversions as cv
     from bb2_msgs_py.contract import message_class, qos_profile
 
-    if StateSource(require_choice("state_source", source, STATE_SOURCES)) is StateSource.NATIVE:
+    native = StateSource(require_choice("state_source", source, STATE_SOURCES)) is StateSource.NATIVE
+    if not native and native_topic != "/bb2/state_native":
+        raise NodeConfigError(f"state_source odometry reads the truth (/bb2/odom): with navigation: sensors the "
+                              f"controllers fly on {native_topic} (state_source native)")
+    if native:
         def on_native(msg):
             try:
                 s = cv.state_native_from_message(msg)
             except cv.ConversionError as exc:
-                node.get_logger().warning(f"ignored /bb2/state_native: {exc}", throttle_duration_sec=2.0)
+                node.get_logger().warning(f"ignored {native_topic}: {exc}", throttle_duration_sec=2.0)
                 return
             callback(s, cv.seconds_to_ns(s.t))
-        return node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
-                                        on_native, qos_profile("/bb2/state_native", reader=True))
+        return node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), native_topic,
+                                        on_native, qos_profile(native_topic, reader=True))
 
     def on_odom(msg):
         try:

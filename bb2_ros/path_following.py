@@ -35,14 +35,14 @@ from bb2_control.errors import NonFiniteInputError, PathFollowingError
 from bb2_msgs_py import conversions as cv
 from bb2_msgs_py.contract import message_class, qos_profile
 
-from bb2_mission.components import build_mission_stack, check_graph_navigation
+from bb2_mission.components import build_mission_stack
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
                                  mission_only, node_options, require_choice, require_positive, require_rate_stack,
-                                 run_node, subscribe_state, time_msg)
+                                 run_node, state_topic, subscribe_state, time_msg)
 
 PROGRESS_SAMPLES = 2001  # arc-length table for the progress (linear interpolation: < 1e-4 m on the shipped paths)
 TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/path/bernstein", "/bb2/guidance/rate_cmd",
-          "/bb2/guidance/path_error", "/bb2/mission/progress", "/bb2/status")
+          "/bb2/guidance/path_error", "/bb2/mission/progress", "/bb2/status", "/bb2/nav/state_native")
 
 
 REJOIN_AFTER_S = 1e-6
@@ -69,7 +69,6 @@ class PathFollowing(Node):
         check_remaps(node, argv, TOPICS, strict=strict)
 
         self.mission = mission_only(mission_file)
-        build_piece(self.mission, check_graph_navigation)
         self.stack = None
         self.length_m = float("nan")
         self.cache = StampedCache()
@@ -84,7 +83,7 @@ class PathFollowing(Node):
             self.sub_path = node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"),
                                                      "/bb2/path/bernstein", self._on_path,
                                                      qos_profile("/bb2/path/bernstein", reader=True))
-        self.sub_state = subscribe_state(node, source, self._on_state)
+        self.sub_state = subscribe_state(node, source, self._on_state, state_topic(self.mission))
         self.status = NodeStatus(node, "bb2/path_following", period, lambda: {
             "mission": self.mission.name, "path_source": self.path_source, "state_source": source,
             "path_received": str(self.stack is not None).lower(), "finished": str(self.finished).lower(),

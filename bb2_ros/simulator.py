@@ -66,6 +66,11 @@ two states: :class:`bb2_sim.sensors.SensorSuite`) and is out of the sensor (late
 ``gps``, stamped with its time of validity; ``/bb2/sensors/mountings`` (latched) gives the mounting frames and
 rates (the suite's /tf_static).  In lockstep the measurements are a function of the seed alone.
 
+Navigation (the mission's ``navigation: sensors``): the vehicle's navigation filter
+(:class:`bb2_control.navigation.NavigationFilter`, as the library runner's) takes those samples once the step is
+integrated, before the state of ``t_n+1`` goes out; with every state its estimate goes out first on
+``/bb2/nav/state_native`` (re-sent with it), and the controllers fly on that.
+
 ``/clock`` goes to ``t_n+1`` when the step from ``t_n`` starts (the commands of ``t_n`` are in), before the
 integration, so the nodes on sim time handle it while the ROM steps, not when they must answer the state.
 Per step ``n`` (time ``t_n``): ``/clock`` (first, at ``t_0``), ``/bb2/state_native``, ``/bb2/odom``, ``/bb2/depth``,
@@ -110,8 +115,9 @@ from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.sensors.truth import truth_from_step
 from bb2_sim.state import VehicleState
 
-from bb2_ros.node_common import (NodeConfigError, Throttle, build_piece, check_remaps, contract_publisher, declare,
-                                 mission_only, node_options, require_choice, require_positive, run_node)
+from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, build_piece, check_remaps,
+                                 contract_publisher, declare, mission_only, node_options, require_choice,
+                                 require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics")
@@ -202,7 +208,7 @@ class Simulator(Node):
         throttle_s = L("warn_throttle_s", 2.0, "at most one warning of a kind per this many wall seconds",
                        lambda v: setattr(self.warn, "period_s", v), positive("warn_throttle_s"))
         strict = bool(P("strict_remaps", False, "a remap rule naming no topic of this node is an error"))
-        check_remaps(node, argv, TOPICS_OUT + TOPICS_IN + SENSOR_TOPICS, strict=strict)
+        check_remaps(node, argv, TOPICS_OUT + TOPICS_IN + SENSOR_TOPICS + (NAV_STATE_TOPIC,), strict=strict)
 
         # this node's pieces only: the ROM at the mission's initial state and the stack's nominal propeller
         self.mission = mission_only(self.mission_file)
@@ -211,8 +217,19 @@ class Simulator(Node):
         self.sim = build_piece(self.mission, lambda m: build_simulator(m, build_model(m, self.environment)))
         self.terrain = self.mission.terrain
         self.sensor_spec = build_piece(self.mission, lambda m: sensor_spec(m, sensor_suite))
-        self.suite = build_piece(self.mission, lambda m: build_sensor_suite(m, self.sim.model, self.sensor_spec))
+        self.suite = None if self.sensor_spec is None else build_piece(  # None: 'none', or no sensors: block
+            self.mission, lambda m: build_sensor_suite(m, self.sim.model, self.sensor_spec))
         self.g = float(self.sim.model.params.g)
+        self.nav = None  # navigation: sensors -- the vehicle's navigation filter on its own sensor samples
+        if self.mission.navigation == "sensors":
+            if self.suite is None:
+                raise NodeConfigError(f"mission {self.mission.name!r}: navigation: sensors needs a sensor suite "
+                                      f"(sensor_suite is {sensor_suite!r})")
+            from bb2_control.navigation import NavigationFilter
+
+            self.nav = build_piece(self.mission, lambda m: NavigationFilter(
+                self.suite.config, self.sim.x, t0=self.sim.t, rho=float(self.sim.model.params.rho), g=self.g))
+        self._nav_msg = None
         self.h = float(self.sim.h)
         if duration < 0:
             duration = float(self.mission.duration)
@@ -241,6 +258,8 @@ class Simulator(Node):
         self.pub = {n: pub(n) for n in TOPICS_OUT if n != "/bb2/altitude" or self.terrain is not None}
         if self.suite is not None:
             self.pub.update({n: pub(n) for n in SENSOR_TOPICS})
+        if self.nav is not None:
+            self.pub[NAV_STATE_TOPIC] = pub(NAV_STATE_TOPIC)
         def sub(type_name, name, callback):  # the readers' QoS of the contract
             return node.create_subscription(message_class(type_name), name, self._locked(callback),
                                             qos_profile(name, reader=True))
@@ -428,6 +447,8 @@ class Simulator(Node):
                                                f"{self.gate.timeout_s(self.sim.n):g} s: stepping with {why}")
             self._step(decision)
         elif action is WatchdogAction.RESEND:
+            if self._nav_msg is not None:
+                self.pub[NAV_STATE_TOPIC].publish(self._nav_msg)
             self.pub["/bb2/state_native"].publish(self._state_native_msg)
             if self._odom_msg is not None and self._odom_msg.header.stamp == self._state_stamp:
                 self.pub["/bb2/odom"].publish(self._odom_msg)  # for controllers on state_source odometry
@@ -523,6 +544,8 @@ class Simulator(Node):
             self.done = self.exit_at_end
             return
         finished = self.t >= self.duration_s - 1e-9 or self._path_flown
+        if self.nav is not None:  # the filter takes the samples of this step before its estimate of t_n+1 goes out
+            self._publish_measurements(state, rec)
         if not finished:
             self._publish_trigger(clock=False)  # first: the controllers work on step n+1 while the sensors go out
         t = rec.t
@@ -530,7 +553,7 @@ class Simulator(Node):
         self.pub["/bb2/imu"].publish(cv.imu_message(state, f_flu))
         self.pub["/bb2/planes/state"].publish(cv.planes_message(t, np.radians(rec.act.planes_deg)))
         self.pub["/bb2/propeller/state"].publish(cv.propeller_message(t, rec.act.rps * TWO_PI))
-        if self.suite is not None:
+        if self.suite is not None and self.nav is None:
             self._publish_measurements(state, rec)
         if finished:
             self._publish_trigger(clock=False)
@@ -555,7 +578,10 @@ class Simulator(Node):
         x_n = state.as_vector()
         a = truth_from_step(state.t, x_n, rec.ev.xdot, self._clearance(x_n[0:3]), self.g)
         b = truth_from_step(self.sim.t, self.sim.x, None, self._clearance(self.sim.x[0:3]), self.g)
-        for s in self.suite.step(a, b):
+        samples = self.suite.step(a, b)
+        if self.nav is not None:
+            self.nav.update(samples)
+        for s in samples:
             for name, msg in sample_messages(s, self.suite.config):
                 self.pub[name].publish(msg)
 
@@ -572,6 +598,9 @@ class Simulator(Node):
             self.pub["/clock"].publish(cv.clock_message(state.t))
         self._state_native_msg = cv.state_native_message(state)
         self._state_stamp = cv.stamp(state.t)
+        if self.nav is not None:  # the estimate the controllers fly on, first: the truth is what the gate counts
+            self._nav_msg = cv.state_native_message(self.nav.state(state.t))
+            self.pub[NAV_STATE_TOPIC].publish(self._nav_msg)
         self.pub["/bb2/state_native"].publish(self._state_native_msg)
         self.gate.state_sent(time.monotonic())
 

@@ -282,15 +282,20 @@ def test_unknown_remap_is_reported_or_refused(graph):
     assert ok.returncode == 0 and "matches no topic of node 'mixer'" in out
 
 
-def test_controllers_refuse_a_mission_that_navigates_on_sensors(graph, tmp_path):
-    """Issue 12: the graph's controllers read the simulator's exact state, so ``navigation: sensors`` is refused
-    at start with the reason (exit 2), never flown on the truth without a word."""
+def test_a_mission_on_sensors_refuses_what_would_fly_it_on_the_truth(graph, tmp_path):
+    """Issue 12: with ``navigation: sensors`` the controllers fly on /bb2/nav/state_native; a controller told to
+    read /bb2/odom (the truth) and a simulator without a sensor suite are refused at start with the reason."""
     _, start, mission = graph
     on_sensors = tmp_path / "on_sensors.yaml"
     on_sensors.write_text(f"extends: {mission}\nsensors: tactical\nnavigation: sensors\n")
-    procs = {m: start(m, "-p", f"mission_file:={on_sensors}") for m in ("bb2_ros.path_following",
-                                                                         "bb2_ros.l1_autopilot")}
-    for m, p in procs.items():
+    arg = f"mission_file:={on_sensors}"
+    procs = {"bb2_ros.path_following": (start("bb2_ros.path_following", "-p", arg, "-p", "state_source:=odometry"),
+                                        "state_source odometry reads the truth"),
+             "bb2_ros.l1_autopilot": (start("bb2_ros.l1_autopilot", "-p", arg, "-p", "state_source:=odometry"),
+                                      "state_source odometry reads the truth"),
+             "bb2_ros.simulator": (start("bb2_ros.simulator", "-p", arg, "-p", "sensor_suite:=none"),
+                                   "navigation: sensors needs a sensor suite")}
+    for m, (p, text) in procs.items():
         out, _ = p.communicate(timeout=60)
         assert p.returncode == 2, (m, out)
-        assert "navigation: sensors is not flown by the ROS graph yet" in out, (m, out)
+        assert text in out, (m, out)

@@ -147,12 +147,9 @@ def test_launch_read_only_bag_dir_is_exit_2_before_anything_starts(tmp_path):
 def test_launch_refuses_bad_input_with_one_line(tmp_path):
     bad = tmp_path / "latin1.yaml"
     bad.write_bytes(b"path: straight\nname: caf\xe9\n")
-    on_sensors = tmp_path / "on_sensors.yaml"   # the graph's controllers read the truth: refused, never ignored
-    on_sensors.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nsensors: tactical\nnavigation: sensors\n")
     mission = str(REPO / "missions" / "straight.yaml")
     cases = {
         (str(bad), "--bag-dir", str(tmp_path)): "not UTF-8",
-        (str(on_sensors), "--bag-dir", str(tmp_path)): "navigation: sensors is not flown by the ROS graph yet",
         (mission, "--bag-dir", str(tmp_path), "--restart", "simulator=restart:1"): "restarting the simulator is refused",
         (mission, "--bag-dir", str(tmp_path), "--restart", "all=restart"): "restarting the simulator is refused",
         (mission, "--bag-dir", str(tmp_path), "--stall-timeout", "nan"): "--stall-timeout",
@@ -162,7 +159,7 @@ def test_launch_refuses_bad_input_with_one_line(tmp_path):
         p = bb2("bb2-launch", *args, timeout=120)
         assert p.returncode == 2, (args, p.stderr)
         assert text in one_error_line(p.stderr, "bb2-launch"), (args, p.stderr)
-    assert sorted(tmp_path.iterdir()) == sorted([bad, on_sensors])   # nothing claimed for a refused launch
+    assert sorted(tmp_path.iterdir()) == [bad]   # nothing claimed for a refused launch
 
 
 # ------------------------------------------------------------------------------------------ bb2-launch graphs

@@ -106,7 +106,7 @@ for s in cfg["nodes"]:
 sup = Supervisor(specs, cfg["logs"], restart_delay_s=0.2)
 try:
     res = run_graph(sup, mon, first=cfg.get("first", []), timeout_s=cfg.get("timeout"), status_period_s=1.0,
-                    stall_timeout_s=cfg.get("stall"))
+                    stall_timeout_s=cfg.get("stall"), ready_timeout_s=cfg.get("ready", 30.0))
 finally:
     sup.stop(hurry=True)
     mon.close()
@@ -428,7 +428,7 @@ def test_a_graph_whose_sim_time_stops_or_never_starts_is_stopped_as_stalled(grap
     (a lockstep simulator waiting for a recorder that is gone)."""
     a = graph.node("a", "--clock", "--clock-for", "1.5") if clock == "stops" else graph.node("a")
     t0 = time.monotonic()
-    p = graph.run([a, graph.node("b")], stall=3.0, timeout=120)
+    p = graph.run([a, graph.node("b")], stall=3.0, ready=4.0, timeout=120)
     out, err = p.communicate(timeout=120)
     res = _result(out)
     assert p.returncode == 1 and res["code"] == 1, err
@@ -553,7 +553,7 @@ def test_bb2_launch_flies_a_short_mission_and_records_the_bag(tmp_path, bb2_grap
     assert stamps == sorted(stamps)
     assert counts["/bb2/planes/cmd"] >= steps + 1 and counts["/bb2/state_native"] >= steps + 1
     published = {t.name for t in select_topics() if not t.name.startswith("/bb2/sensors/")} - {
-        "/bb2/altitude"}  # no terrain on this mission, and no sensors: block (no /bb2/sensors/*)
+        "/bb2/altitude", "/bb2/nav/state_native"}  # no terrain, no sensors: block (no /bb2/sensors/*, no navigation)
     assert published <= set(counts), sorted(published - set(counts))
     for node in L.GRAPH_NODES:  # each node's log was captured, and each stopped cleanly
         log = (out / "logs" / f"{node.name}.log").read_text()
