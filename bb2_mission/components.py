@@ -26,7 +26,7 @@ from bb2_mission.schema import RPS_PATH_MEAN_SPEED, Mission, MissionError, _reso
 
 __all__ = ["MissionComponents", "HullProbes", "mission_components", "check_initial_state", "stack_overrides",
            "initial_state", "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer",
-           "build_sensor_suite", "sensor_spec"]
+           "build_sensor_suite", "sensor_spec", "cg_clearance", "step_truths"]
 
 
 def stack_overrides(m: Mission) -> dict[str, Any]:
@@ -217,6 +217,28 @@ def build_sensor_suite(m: Mission, model: Any, sensors: Any = None) -> Any:
     if spec is None:
         return None
     return SensorSuite.for_model(spec.suite, model, seed=spec.seed, faults=spec.faults)
+
+
+def cg_clearance(terrain: Terrain | None, p_native: np.ndarray) -> float:
+    """The CG's vertical clearance above ``terrain`` (m): the altimeter's truth; NaN without terrain or off its
+    grid."""
+    if terrain is None:
+        return float("nan")
+    try:
+        return float(terrain.clearance(p_native))
+    except ValueError:  # off the terrain grid
+        return float("nan")
+
+
+def step_truths(t_n: float, x_n: np.ndarray, xdot_n: np.ndarray, t_next: float, x_next: np.ndarray,
+                terrain: Terrain | None, g: float) -> tuple[Any, Any]:
+    """The truth the sensor suite samples over the ROM step ``[t_n, t_next)``: the state and its derivative at
+    ``t_n`` (``StepRecord.ev.xdot``), the state at ``t_next``, the CG clearances (the simulator node and the
+    runner alike)."""
+    from bb2_sim.sensors.truth import truth_from_step
+
+    return (truth_from_step(t_n, x_n, xdot_n, cg_clearance(terrain, np.asarray(x_n)[0:3]), g),
+            truth_from_step(t_next, x_next, None, cg_clearance(terrain, np.asarray(x_next)[0:3]), g))
 
 
 def nominal_rps(m: Mission) -> float:

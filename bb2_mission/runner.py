@@ -34,7 +34,7 @@ import numpy as np
 
 from bb2_planner.bernstein import BernsteinPath
 
-from bb2_mission.components import mission_components, terrain_elevation
+from bb2_mission.components import mission_components, step_truths, terrain_elevation
 from bb2_mission.lockstep_gate import clamp_planes_deg, clamp_rps
 from bb2_mission.records import MissionRow, rows_to_columns
 from bb2_mission.schema import Mission, load_mission
@@ -159,20 +159,9 @@ class MissionRunner:
     def _sense(self, state: Any, x: np.ndarray, rec: Any) -> None:
         """The sensor samples of the step just integrated (``[t_n, t_n+1)``) into the navigation filter, from the
         truth exactly as the simulator node builds it."""
-        from bb2_sim.sensors.truth import truth_from_step
-
-        g = float(self.sim.model.params.g)
-        a = truth_from_step(state.t, x, rec.ev.xdot, self._cg_clearance(x[0:3]), g)
-        b = truth_from_step(self.sim.t, self.sim.x, None, self._cg_clearance(self.sim.x[0:3]), g)
+        a, b = step_truths(state.t, x, rec.ev.xdot, self.sim.t, self.sim.x, self.terrain,
+                           float(self.sim.model.params.g))
         self.nav.update(self.suite.step(a, b))
-
-    def _cg_clearance(self, p_native: np.ndarray) -> float:
-        if self.terrain is None:
-            return math.nan
-        try:
-            return float(self.terrain.clearance(p_native))
-        except ValueError:  # off the terrain grid
-            return math.nan
 
     def _row(self, state: Any, x: np.ndarray, out: Any, rec: Any, tz: float, cl: float, hull: float,
              flown: Any = None) -> MissionRow:

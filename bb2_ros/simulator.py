@@ -105,14 +105,14 @@ import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from bb2_mission.components import build_model, build_sensor_suite, build_simulator, nominal_rps, sensor_spec
+from bb2_mission.components import (build_model, build_sensor_suite, build_simulator, nominal_rps, sensor_spec,
+                                    step_truths)
 from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, RecorderAck,
                                        StepDecision, TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
 from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS, mountings_json, sample_messages
 from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT, message_class, qos_profile
 from bb2_sim.integrator import NonFiniteStateError
-from bb2_sim.sensors.truth import truth_from_step
 from bb2_sim.state import VehicleState
 
 from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, build_piece, check_remaps,
@@ -565,19 +565,9 @@ class Simulator(Node):
             return
         self._publish_sensors()
 
-    def _clearance(self, p_native) -> float:
-        if self.terrain is None:
-            return math.nan
-        try:
-            return float(self.terrain.clearance(p_native))
-        except ValueError:  # off the terrain grid
-            return math.nan
-
     def _publish_measurements(self, state: VehicleState, rec) -> None:
         """The sensor samples of ``[t_n, t_n+1)`` (the step just integrated from ``state``)."""
-        x_n = state.as_vector()
-        a = truth_from_step(state.t, x_n, rec.ev.xdot, self._clearance(x_n[0:3]), self.g)
-        b = truth_from_step(self.sim.t, self.sim.x, None, self._clearance(self.sim.x[0:3]), self.g)
+        a, b = step_truths(state.t, state.as_vector(), rec.ev.xdot, self.sim.t, self.sim.x, self.terrain, self.g)
         samples = self.suite.step(a, b)
         if self.nav is not None:
             self.nav.update(samples)

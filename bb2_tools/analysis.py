@@ -8,6 +8,9 @@ Definitions (those of :mod:`bb2_mission`, so analysis and runner agree by constr
 * ``rms/max_vertical_m``, ``rms/max_horizontal_m``: the stack's own errors (``path_error`` y = left,
   z = up) over the ticks, RMS and max |e| (:func:`bb2_mission.MissionSummary`);
 * ``*_closest_m``: from the closest path point, :func:`bb2_mission.path_errors_closest`;
+* ``rms_nav_error_m``, ``max_nav_error_m``, ``max_nav_heading_error_deg`` (a bag with
+  ``/bb2/nav/state_native``: the stack flew on the navigation estimate): the estimate's position error and
+  heading error against the state at the ticks, as the runner's summary;
 * ground clearance: ``z - z_terrain(x, y)`` of the CG (vertical, native) and of the lowest hull probe when
   the mission's terrain is known (``mission=``, or the bag's ``custom_data`` ``mission_file``, or the
   simulator's ``/bb2/status`` ``mission_file``); else the altimeter's minimum (``/bb2/altitude``);
@@ -39,7 +42,7 @@ import numpy as np
 
 from bb2_mission.summary import rms_max
 
-from bb2_tools.bag_run import T_PATH, T_PATH_ERROR, AnalysisError, BagRun, Series
+from bb2_tools.bag_run import T_NAV, T_PATH, T_PATH_ERROR, AnalysisError, BagRun, Series
 
 if TYPE_CHECKING:
     from bb2_sim.metrics import Figures as ManeuverFigures
@@ -218,6 +221,9 @@ class RunFigures:
     real_time_factor: float                 #: sim time / wall time (NaN: unknown)
     maneuver: ManeuverFigures | None = None  #: bb2_sim.metrics figures of a maneuver run
     end: RunEnd = RunEnd("")                #: how the run ended (reason "" for a maneuver bag)
+    #: the navigation estimate's errors at the ticks (navigation: sensors; None on the truth): the runner's
+    #: rms_nav_error_m, max_nav_error_m, max_nav_heading_error_deg
+    navigation: Mapping[str, float] | None = None
 
     def named(self) -> dict[str, float]:
         """The named figures (as printed and written by ``bb2-analyze``), in their fixed order."""
@@ -227,6 +233,7 @@ class RunFigures:
         if self.path_error_closest is not None:
             out.update(self.path_error_closest.named("_closest"))
         out.update(_present({"final_progress": self.final_progress}))
+        out.update(self.navigation or {})
         out.update(self.clearance.named())
         out.update(self.trajectory.named())
         out.update(self.commands.named())
@@ -297,7 +304,7 @@ def compare(a: Analysis, b: Analysis) -> list[tuple[str, float, float, float]]:
 
 _UNIT_SUFFIXES = (("_rps_s", "rev/s^2", 1.0), ("_rps", "rev/s", 1.0), ("_rad_s_s", "deg/s^2", RAD2DEG),
                   ("_rad_s", "deg/s", RAD2DEG), ("_rad", "deg", RAD2DEG), ("_m_s", "m/s", 1.0), ("_m", "m", 1.0),
-                  ("_s", "s", 1.0), ("_fraction", "%", 100.0))
+                  ("_s", "s", 1.0), ("_fraction", "%", 100.0), ("_deg", "deg", 1.0))
 
 
 def format_figure(name: str, value: float) -> tuple[str, str, str]:
@@ -378,6 +385,7 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
         warnings.append("no path in the bag (and no mission): no closest-point path errors")
     closest_errors = _error_stats(ev_c, eh_c) if np.isfinite(ev_c).any() else None
     final_progress = float(run.progress.v[-1, 0]) if len(run.progress) else None
+    navigation = _navigation_errors(run, tick, warnings) if len(run.nav_state) else None
 
     # ground clearance
     zt = cl = hull = np.full(n, np.nan)
@@ -458,7 +466,8 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
     end = RunEnd("") if maneuver else _run_end(run, tick, mission, probes, cl, hull, warnings)
     figures = RunFigures(times=times, path_error=stack_errors, path_error_closest=closest_errors,
                          final_progress=final_progress, clearance=clearance, trajectory=trajectory,
-                         commands=commands, real_time_factor=rtf, maneuver=man_figs, end=end)
+                         commands=commands, real_time_factor=rtf, maneuver=man_figs, end=end,
+                         navigation=navigation)
     return Analysis(run=run, figures=figures, tick=tick, e_vertical=e_v, e_horizontal=e_h,
                     e_vertical_closest=np.asarray(ev_c, float), e_horizontal_closest=np.asarray(eh_c, float),
                     clearance=cl, hull_clearance=hull, terrain_z=zt, mission=mission, maneuver=maneuver,
@@ -466,6 +475,21 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
 
 
 # ------------------------------------------------------------------------------------------ the parts
+def _navigation_errors(run: BagRun, tick: np.ndarray, warnings: list[str]) -> dict[str, float]:
+    """The errors of the navigation estimate (``/bb2/nav/state_native``) against the state at the ticks, as the
+    runner's summary computes them: position (m, RMS and max) and heading (deg, max)."""
+    est = run.nav_state.at_stamps(run.stamps_ns[tick])
+    x = run.x[tick]
+    ok = np.isfinite(est[:, 0])
+    if not ok.all():
+        warnings.append(f"{T_NAV}: {int((~ok).sum())} of {len(ok)} ticks have no navigation estimate "
+                        "(statistics over the recorded ones)")
+    e = np.linalg.norm(est[:, 0:3] - x[:, 0:3], axis=1)
+    dpsi = np.degrees(np.remainder(est[:, 5] - x[:, 5] + math.pi, 2 * math.pi) - math.pi)
+    rms, mx = rms_max(e)
+    return {"rms_nav_error_m": rms, "max_nav_error_m": mx, "max_nav_heading_error_deg": rms_max(dpsi)[1]}
+
+
 def _error_stats(e_vertical: np.ndarray, e_horizontal: np.ndarray) -> PathErrorStats:
     rv, mv = rms_max(e_vertical)
     rh, mh = rms_max(e_horizontal)

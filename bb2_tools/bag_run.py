@@ -44,8 +44,9 @@ T_PROP = "/bb2/propeller/state"
 T_ALT = "/bb2/altitude"
 T_PROGRESS = "/bb2/mission/progress"
 T_STATUS = "/bb2/status"
+T_NAV = "/bb2/nav/state_native"
 USED_TOPICS = (T_STATE, T_ODOM, T_BERNSTEIN, T_PATH, T_PATH_ERROR, T_RATE, T_VH, T_PLANES_CMD, T_PLANES,
-               T_PROP_CMD, T_PROP, T_ALT, T_PROGRESS, T_STATUS)
+               T_PROP_CMD, T_PROP, T_ALT, T_PROGRESS, T_STATUS, T_NAV)
 
 
 class AnalysisError(ValueError):
@@ -117,6 +118,8 @@ class BagRun:
     prop: Series = field(default_factory=lambda: Series.empty(1))          #: rad/s (actual)
     altitude: Series = field(default_factory=lambda: Series.empty(1))      #: m (NaN: no bottom in range)
     progress: Series = field(default_factory=lambda: Series.empty(1))      #: 1
+    #: the navigation estimate the controllers flew on (navigation: sensors), native x12; empty on the truth
+    nav_state: Series = field(default_factory=lambda: Series.empty(12))
     status: list[StatusEntry] = field(default_factory=list)  #: every status, in bag order
     warnings: list[str] = field(default_factory=list)
     #: messages lost before they reached the recorder (:func:`bb2_tools.bagfile.bag_gaps`); None: the bag
@@ -215,6 +218,9 @@ def read_bag(path: str | Path, label: str | None = None) -> BagRun:
                 ns = cv.seconds_to_ns(s.t)
                 rows[T_STATE].append((ns, [s.t, *s.as_vector()]))
                 state_pub.setdefault(ns, m.publish_time_ns)
+            elif m.topic == T_NAV:
+                s = cv.state_native_from_message(msg)
+                rows[T_NAV].append((cv.seconds_to_ns(s.t), list(s.as_vector())))
             elif m.topic == T_ODOM:
                 s = cv.odometry_to_state(msg)
                 ns = _stamp_ns(msg)
@@ -282,7 +288,8 @@ def read_bag(path: str | Path, label: str | None = None) -> BagRun:
         vh_cmd=_series(rows[T_VH], 2), planes_cmd=_series(rows[T_PLANES_CMD], 5),
         planes=_series(rows[T_PLANES], 5), prop_cmd=_series(rows[T_PROP_CMD], 1),
         prop=_series(rows[T_PROP], 1), altitude=_series(rows[T_ALT], 1),
-        progress=_series(rows[T_PROGRESS], 1), status=status, warnings=warnings)
+        progress=_series(rows[T_PROGRESS], 1), status=status, warnings=warnings,
+        nav_state=_series(rows[T_NAV], 12))
     if reader.metadata is None and p.is_dir():
         run.warnings.append("no metadata.yaml beside the .mcap (bag not finished; `bagfile.recover` repairs it)")
     try:

@@ -17,18 +17,18 @@ DURATION_S = 10.0
 
 
 def _library(mission: Path):
-    """The runner's truth ``t -> x12`` and the estimate it flew on ``t -> x12``, every step."""
+    """The runner's truth ``t -> x12``, the estimate it flew on ``t -> x12``, every step, and its summary."""
     from bb2_mission import MissionRunner, load_mission
 
     r = MissionRunner(load_mission(mission))
-    truth, est = {}, {}
+    truth, est, rows = {}, {}, []
     while not r.done:
         est[r.sim.t] = r.nav.state(r.sim.t).as_vector()   # what the stack gets this tick (idempotent)
         truth[r.sim.t] = r.sim.x.copy()
-        r.step()
+        rows.append(r.step().row)
     truth[r.sim.t] = r.sim.x.copy()
     est[r.sim.t] = r.nav.state(r.sim.t).as_vector()
-    return truth, est
+    return truth, est, rows
 
 
 def _bag_states(bag: Path, topic: str) -> dict[float, np.ndarray]:
@@ -49,7 +49,7 @@ def test_the_lockstep_graph_flies_on_the_navigation_estimate_as_the_runner_does(
     mission = tmp_path / "canyon_nav.yaml"
     mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nname: canyon_nav\nduration_s: {DURATION_S}\n"
                        "sensors: {suite: mems, seed: 5}\nnavigation: sensors\n")
-    truth, est = _library(mission)
+    truth, est, rows = _library(mission)
     out = tmp_path / "run"
     r = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out),
                         "--end-at", "simulator", "--timeout", "300"], capture_output=True, text=True,
@@ -65,3 +65,13 @@ def test_the_lockstep_graph_flies_on_the_navigation_estimate_as_the_runner_does(
     # the estimate is not the truth: the graph's controllers flew on something else than /bb2/state_native
     last = max(truth)
     assert np.linalg.norm(bag_est[last][0:3] - bag_truth[last][0:3]) > 0.01
+    # bb2-analyze says the estimate's errors, as the runner's summary does
+    from bb2_mission.summary import rms_max
+    from bb2_tools.analysis import analyze
+    from bb2_tools.bag_run import read_bag
+
+    f = analyze(read_bag(out)).figures.named()
+    rms, mx = rms_max(np.array([row.nav_position_error_m for row in rows]))
+    assert f["rms_nav_error_m"] == pytest.approx(rms, abs=1e-9) and f["max_nav_error_m"] == pytest.approx(mx, abs=1e-9)
+    psi = rms_max(np.array([row.nav_heading_error_deg for row in rows]))[1]
+    assert f["max_nav_heading_error_deg"] == pytest.approx(psi, abs=1e-9)
