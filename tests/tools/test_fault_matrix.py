@@ -165,6 +165,8 @@ class Cell:
     walls: dict[str, list[float]] = field(default_factory=dict)  # publish (DDS source) wall times, s
     statuses: list[dict[str, str]] = field(default_factory=list)  # the simulator's /bb2/status values, in order
     wall_s: float = 0.0  # how long the cell took
+    sequences: dict[str, list[tuple[int, float]]] = field(default_factory=dict)  # (publication sequence, stamp)
+    gaps: list = field(default_factory=list)  # the recording gaps the bag says (bagfile.bag_gaps)
 
     @property
     def states(self) -> list[float]:
@@ -175,6 +177,19 @@ class Cell:
         """Stretches of sim time (from, to) in which ``topic`` has no stamp, longer than one step."""
         ts = sorted(set(t for t in self.stamps.get(topic, []) if t > after_s))
         return [(a, b) for a, b in zip(ts, ts[1:]) if b - a > 1.5 * TS]
+
+    def said_lost(self, topic: str) -> list[tuple[float, float]]:
+        """Stretches of sim time (from, to), open at both ends, between two recorded messages of ``topic`` whose
+        publication sequence numbers jump: messages lost before the recorder (under CPU contention a reliable
+        command topic can lose one), each of them said in the bag's gaps, which this asserts."""
+        seq = self.sequences.get(topic, [])  # in the bag's order (one writer: the killed cells restart nothing)
+        out = []
+        for (s1, t1), (s2, t2) in zip(seq, seq[1:]):
+            if s2 - s1 > 1:
+                assert any(g.topic == topic and g.after_sequence == s1 and g.before_sequence == s2
+                           for g in self.gaps), (topic, s1, s2, self.gaps)   # a loss is said, never silent
+                out.append((t1, t2))
+        return out
 
 
 _start_lock = threading.Lock()
@@ -202,6 +217,14 @@ def read_bag(cell: Cell) -> None:
     topics = [t for t in (*STAMPED, "/bb2/state_native", "/bb2/status") if t in bag.topics]
     for m in bag.raw_messages(topics):
         cell.walls.setdefault(m.topic, []).append(m.publish_time_ns * 1e-9)
+    from bb2_tools.bagfile import bag_gaps
+
+    cell.gaps = bag_gaps(bag) or []
+    decoded = bag.messages(["/bb2/planes/cmd"]) if "/bb2/planes/cmd" in bag.topics else []
+    raws = bag.raw_messages(["/bb2/planes/cmd"]) if "/bb2/planes/cmd" in bag.topics else []
+    for m, (_topic, _log, msg) in zip(raws, decoded):
+        stamp = round(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, 6)
+        cell.sequences.setdefault("/bb2/planes/cmd", []).append((int(m.sequence), stamp))
     for topic, _log, msg in bag.messages(topics):
         if topic == "/bb2/status":
             cell.statuses += [{kv.key: kv.value for kv in st.values} for st in msg.status if "simulator" in st.name]
@@ -351,8 +374,12 @@ def check_killed(cell: Cell) -> None:
     # (a killed controller's last samples may die in flight, as above: the probe saw the mixer answer a state whose
     # answer the recorder never got -- seen with the mixer killed in real time -- or the next stage never got them)
     upto = cell.fault_at_s - (2 * TS if n in CONTROLLERS else 0.0)
-    unanswered = [t for t in st if min(answered) <= t <= upto + 1e-9 and t not in answered]
-    assert not unanswered, (min(answered), unanswered[:5])
+    # (an answer lost before the recorder is allowed where the bag says it: seen once, one /bb2/planes/cmd of a
+    # real-time cell in a full suite beside two CPU hogs)
+    said = cell.said_lost("/bb2/planes/cmd")
+    unanswered = [t for t in st if min(answered) <= t <= upto + 1e-9 and t not in answered
+                  and not any(a < t < b for a, b in said)]
+    assert not unanswered, (min(answered), unanswered[:5], said)
 
 
 def check_completed(cell: Cell) -> None:
