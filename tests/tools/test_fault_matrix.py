@@ -336,6 +336,19 @@ def check_common(cell: Cell) -> None:
     assert 0.0 < cell.fault_at_s < cell.duration_s - 2.0, cell.fault_at_s
 
 
+def teardown_hangs(cell: Cell) -> set[str]:
+    """Nodes whose rclpy teardown hung after the graph was told to stop, bounded by their ExitWatchdog (its stack
+    dump in the node's log, exit 1) and said by the launcher "during shutdown": not the fault's doing.  Seen once per
+    few full suites beside two CPU hogs (the main thread in rclpy's ``EventHandler.__exit__``); left open in
+    issue 10."""
+    out = set()
+    for m in re.findall(r"during shutdown: node '(\w+)' ended \(exit code 1\)", cell.stderr):
+        log = cell.logs.get(m, "")
+        if "Timeout (" in log or "still running" in log:
+            out.add(m)
+    return out
+
+
 def summary_line(cell: Cell) -> str:
     lines = [ln for ln in cell.stderr.splitlines() if re.match(r"\[bb2-launch\] .*: sim time .*, exit code \d+$", ln)]
     assert len(lines) == 1, cell.stderr
@@ -351,7 +364,8 @@ def check_killed(cell: Cell) -> None:
     # (sim time "--": the launcher's monitor had no /clock sample yet, seen on short runs of a loaded machine)
     assert re.match(rf"\[bb2-launch\] node '{n}' failed \(killed by SIGKILL\): sim time ([0-9.]+ s|--), .*exit code 1$",
                     summary_line(cell)), cell.stderr
-    assert set(re.findall(r"node '(\w+)' ended \(", cell.stderr)) == {n}, cell.stderr   # no other node failed
+    ended = set(re.findall(r"node '(\w+)' ended \(", cell.stderr)) - (teardown_hangs(cell) - {n})
+    assert ended == {n}, cell.stderr   # no other node failed
     st = cell.states
     assert cell.fault_at_s <= st[-1] < cell.duration_s - 1.0, (cell.fault_at_s, st[-1])
     assert all(s.get("state") == "running" for s in cell.statuses), [s.get("state") for s in cell.statuses]
@@ -387,7 +401,9 @@ def check_completed(cell: Cell) -> None:
     assert "[bb2-launch] stopping: mission complete" in cell.stderr, cell.stderr
     assert re.match(rf"\[bb2-launch\] mission complete: sim time {cell.duration_s:.2f} s, .*exit code 0$",
                     summary_line(cell)), cell.stderr
-    assert "failed" not in cell.stderr and "ended (" not in cell.stderr, cell.stderr   # no node reported
+    hung = teardown_hangs(cell)
+    assert "failed" not in cell.stderr, cell.stderr   # no node reported, but a bounded teardown hang
+    assert set(re.findall(r"node '(\w+)' ended \(", cell.stderr)) <= hung, cell.stderr
     assert cell.states[-1] == pytest.approx(cell.duration_s)   # every state 0 .. duration (no hole: check_common)
     assert cell.statuses[-1]["state"] == "finished" and cell.statuses[-1]["failsafe"] == "false", cell.statuses[-1]
 
