@@ -26,7 +26,8 @@ from bb2_mission.schema import RPS_PATH_MEAN_SPEED, Mission, MissionError, _reso
 
 __all__ = ["MissionComponents", "HullProbes", "mission_components", "check_initial_state", "stack_overrides",
            "initial_state", "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer",
-           "build_sensor_suite", "sensor_spec", "cg_clearance", "step_truths"]
+           "build_sensor_suite", "sensor_spec", "cg_clearance", "step_truths",
+           "build_navigation_filter"]
 
 
 def stack_overrides(m: Mission) -> dict[str, Any]:
@@ -217,6 +218,16 @@ def build_sensor_suite(m: Mission, model: Any, sensors: Any = None) -> Any:
     if spec is None:
         return None
     return SensorSuite.for_model(spec.suite, model, seed=spec.seed, faults=spec.faults)
+
+
+def build_navigation_filter(suite: Any, simulator: Any) -> Any:
+    """The vehicle's navigation filter (:class:`bb2_control.navigation.NavigationFilter`) on ``suite``'s sensors,
+    started at the simulator's state and time, in its ROM's sea-water density and gravity (``navigation:
+    sensors``; the simulator node and the runner alike)."""
+    from bb2_control.navigation import NavigationFilter
+
+    p = simulator.model.params
+    return NavigationFilter(suite.config, simulator.x, t0=simulator.t, rho=float(p.rho), g=float(p.g))
 
 
 def cg_clearance(terrain: Terrain | None, p_native: np.ndarray) -> float:

@@ -38,7 +38,7 @@ from bb2_mission.components import mission_components, step_truths, terrain_elev
 from bb2_mission.lockstep_gate import clamp_planes_deg, clamp_rps
 from bb2_mission.records import MissionRow, rows_to_columns
 from bb2_mission.schema import Mission, load_mission
-from bb2_mission.summary import EndReason, MissionEvent, MissionSummary, limit_event, summarize
+from bb2_mission.summary import EndReason, MissionEvent, MissionSummary, limit_event, navigation_errors, summarize
 
 __all__ = ["MissionStep", "MissionResult", "MissionRunner", "run_mission"]
 
@@ -95,13 +95,10 @@ class MissionRunner:
         self._last_out: Any = None
         self.suite = self.nav = None
         if mission.navigation == "sensors":
-            from bb2_control.navigation import NavigationFilter
-            from bb2_mission.components import build_sensor_suite
+            from bb2_mission.components import build_navigation_filter, build_sensor_suite
 
             self.suite = build_sensor_suite(mission, self.sim.model)
-            p = self.sim.model.params
-            self.nav = NavigationFilter(self.suite.config, self.c.x0, t0=self.sim.t, rho=float(p.rho),
-                                        g=float(p.g))
+            self.nav = build_navigation_filter(self.suite, self.sim)
 
     # -- terrain
     def _clearances(self, x: np.ndarray) -> tuple[float, float, float]:
@@ -176,8 +173,8 @@ class MissionRunner:
         xd, yd, zd = out.p_d_native
         nav_p = nav_psi = math.nan
         if flown is not None and flown is not state:  # the estimate's error
-            nav_p = float(np.linalg.norm(flown.p_native - state.p_native))
-            nav_psi = math.degrees(math.remainder(float(flown.euler_native[2] - state.euler_native[2]), 2 * math.pi))
+            e, dpsi = navigation_errors(flown.as_vector(), x)
+            nav_p, nav_psi = float(e), float(dpsi)
         return MissionRow(
             t_s=state.t, x_m=x[0], y_m=x[1], z_m=x[2],
             phi_deg=x[3] * RAD2DEG, theta_deg=x[4] * RAD2DEG, psi_deg=x[5] * RAD2DEG,

@@ -16,7 +16,7 @@ import numpy as np
 from bb2_planner.bernstein import BernsteinPath
 
 __all__ = ["EndReason", "MissionEvent", "MissionSummary", "limit_event", "path_errors_closest", "summarize",
-           "rms_max"]
+           "rms_max", "navigation_errors"]
 
 
 class EndReason(StrEnum):
@@ -131,6 +131,16 @@ def rms_max(e: np.ndarray) -> tuple[float, float]:
     if e.size == 0:
         return math.nan, math.nan
     return float(np.sqrt(np.mean(e ** 2))), float(np.max(np.abs(e)))
+
+
+def navigation_errors(est_x12: np.ndarray, true_x12: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The errors of navigation estimates against the truth (native x12, one row each or one vector): position
+    (m, norm) and heading (deg, estimate minus truth, wrapped to [-180, 180]); what the runner's rows and
+    ``bb2-analyze`` report."""
+    est, true = np.asarray(est_x12, float), np.asarray(true_x12, float)
+    e = np.linalg.norm(est[..., 0:3] - true[..., 0:3], axis=-1)
+    dpsi = np.degrees(np.remainder(est[..., 5] - true[..., 5] + math.pi, 2 * math.pi) - math.pi)
+    return e, dpsi
 
 
 def path_errors_closest(path_native: BernsteinPath, p_native: np.ndarray, samples: int = 20001

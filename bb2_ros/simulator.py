@@ -105,8 +105,8 @@ import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from bb2_mission.components import (build_model, build_sensor_suite, build_simulator, nominal_rps, sensor_spec,
-                                    step_truths)
+from bb2_mission.components import (build_model, build_navigation_filter, build_sensor_suite, build_simulator,
+                                    nominal_rps, sensor_spec, step_truths)
 from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, RecorderAck,
                                        StepDecision, TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
@@ -225,10 +225,7 @@ class Simulator(Node):
             if self.suite is None:
                 raise NodeConfigError(f"mission {self.mission.name!r}: navigation: sensors needs a sensor suite "
                                       f"(sensor_suite is {sensor_suite!r})")
-            from bb2_control.navigation import NavigationFilter
-
-            self.nav = build_piece(self.mission, lambda m: NavigationFilter(
-                self.suite.config, self.sim.x, t0=self.sim.t, rho=float(self.sim.model.params.rho), g=self.g))
+            self.nav = build_piece(self.mission, lambda m: build_navigation_filter(self.suite, self.sim))
         self._nav_msg = None
         self.h = float(self.sim.h)
         if duration < 0:

@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
-from bb2_mission.summary import rms_max
+from bb2_mission.summary import navigation_errors, rms_max
 
 from bb2_tools.bag_run import T_NAV, T_PATH, T_PATH_ERROR, AnalysisError, BagRun, Series
 
@@ -484,8 +484,7 @@ def _navigation_errors(run: BagRun, tick: np.ndarray, warnings: list[str]) -> di
     if not ok.all():
         warnings.append(f"{T_NAV}: {int((~ok).sum())} of {len(ok)} ticks have no navigation estimate "
                         "(statistics over the recorded ones)")
-    e = np.linalg.norm(est[:, 0:3] - x[:, 0:3], axis=1)
-    dpsi = np.degrees(np.remainder(est[:, 5] - x[:, 5] + math.pi, 2 * math.pi) - math.pi)
+    e, dpsi = navigation_errors(est, x)
     rms, mx = rms_max(e)
     return {"rms_nav_error_m": rms, "max_nav_error_m": mx, "max_nav_heading_error_deg": rms_max(dpsi)[1]}
 
