@@ -32,13 +32,18 @@ __all__ = ["DVL_TOPIC", "DVL_WATER_TOPIC", "DVL_RANGES_TOPIC", "SENSOR_TOPICS", 
            "dvl_beam_frame", "imu_sample_message", "pressure_sample_message", "dvl_sample_message",
            "dvl_range_messages", "altimeter_sample_message", "gps_sample_message", "sample_messages",
            "mountings_description", "mountings_json", "imu_sample_from_message", "dvl_from_message",
-           "gps_from_message"]
+           "gps_from_message", "NAVIGATION_SENSOR_TOPICS", "sample_from_message", "sample_order"]
+
+from bb2_sim.sensors.samples import sample_order  # noqa: E402  (sort the samples read back from the topics)
 
 DVL_TOPIC = "/bb2/sensors/dvl"
 DVL_WATER_TOPIC = "/bb2/sensors/dvl/water_track"
 DVL_RANGES_TOPIC = "/bb2/sensors/dvl/ranges"
 SENSOR_TOPICS = ("/bb2/sensors/imu", "/bb2/sensors/pressure", DVL_TOPIC, DVL_WATER_TOPIC, DVL_RANGES_TOPIC,
                  "/bb2/sensors/altimeter", "/bb2/sensors/gps", "/bb2/sensors/mountings")
+#: the topics whose messages the navigation filter (bb2_control.navigation) takes, in its sensors' order
+NAVIGATION_SENSOR_TOPICS = ("/bb2/sensors/imu", "/bb2/sensors/pressure", DVL_TOPIC, DVL_WATER_TOPIC,
+                            "/bb2/sensors/gps")
 MOUNTINGS_FORMAT = "bb2_sensor_mountings/1"
 DVL_BEAM_FOV_RAD = 0.035   # ~2 deg: the beam width of the Range messages of the DVL beams (nominal)
 
@@ -188,3 +193,69 @@ def mountings_description(suite_config, seed: int = 0, parent: str = "base_link"
 
 def mountings_json(suite_config, seed: int = 0) -> str:
     return json.dumps(mountings_description(suite_config, seed), allow_nan=False)
+
+
+# ---------------------------------------------------------------------------------------- messages -> samples
+def _stamp_s(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def _finite_cov(values, n: int, where: str) -> np.ndarray:
+    from .conversions import ConversionError
+
+    c = np.array(values, dtype=float)
+    if c.size != n * n:
+        raise ConversionError(f"{where}: a covariance of {n * n} numbers expected, got {c.size}")
+    return c.reshape(n, n)
+
+
+def sample_from_message(topic: str, msg, suite_config=None):
+    """The sensor sample (:mod:`bb2_sim.sensors.samples`) a ``/bb2/sensors/*`` message carries: the inverse of
+    :func:`sample_messages`, for an autopilot that reads the sensor topics (the navigation filter takes these).
+
+    ``t`` is the header stamp (to the nanosecond); ``t_available`` adds the latency of the suite's sensor where the
+    sample has one (the DVL; none without ``suite_config``).  A DVL message gives no beam ranges (those come on
+    ``/bb2/sensors/dvl/ranges``).  A GPS fix is turned back to ``map`` (ENU) about the suite's origin, so a GPS
+    message needs ``suite_config``.  Raises ``ConversionError`` for a topic that carries no sample of these kinds or
+    a frame other than the suite's."""
+    from bb2_sim.sensors.geodesy import geodetic_to_enu
+    from bb2_sim.sensors.samples import DvlSample, GpsSample, ImuSample, PressureSample
+
+    from .conversions import ConversionError
+
+    kinds = {"/bb2/sensors/imu": "imu", "/bb2/sensors/pressure": "pressure", DVL_TOPIC: "dvl", DVL_WATER_TOPIC: "dvl",
+             "/bb2/sensors/gps": "gps"}
+    kind = kinds.get(topic)
+    if kind is None:
+        raise ConversionError(f"no sensor sample is carried on {topic!r} (the sample topics: {sorted(kinds)})")
+    t = _stamp_s(msg)
+    frame = msg.header.frame_id
+    cfg = suite_config.sensors().get(kind) if suite_config is not None else None
+    if suite_config is not None:
+        if cfg is None:
+            raise ConversionError(f"{topic}: the suite {suite_config.name!r} has no {kind}")
+        if frame != cfg.frame_id:
+            raise ConversionError(f"{topic}: frame_id {frame!r}, the suite's {kind} is mounted as {cfg.frame_id!r}")
+    if kind == "imu":
+        o, w, f = msg.orientation, msg.angular_velocity, msg.linear_acceleration
+        return ImuSample("imu", t, t, frame, np.array([w.x, w.y, w.z]), np.array([f.x, f.y, f.z]),
+                         np.array([o.x, o.y, o.z, o.w]), _finite_cov(msg.orientation_covariance, 3, topic),
+                         _finite_cov(msg.angular_velocity_covariance, 3, topic),
+                         _finite_cov(msg.linear_acceleration_covariance, 3, topic))
+    if kind == "pressure":
+        return PressureSample("pressure", t, t, frame, float(msg.fluid_pressure), float(msg.variance))
+    if kind == "dvl":
+        v = msg.twist.twist.linear
+        latency = float(cfg.latency_s) if cfg is not None else 0.0
+        return DvlSample("dvl", t, t + latency, frame, topic == DVL_TOPIC, np.array([v.x, v.y, v.z]),
+                         _finite_cov(msg.twist.covariance, 6, topic)[0:3, 0:3], np.zeros(0), np.zeros(0, bool))
+    if suite_config is None:
+        raise ConversionError(f"{topic}: a GPS fix needs the suite (its map origin) to give a position in map")
+    from sensor_msgs.msg import NavSatStatus
+
+    origin = (float(cfg.origin_lat_deg), float(cfg.origin_lon_deg), float(cfg.origin_alt_m))
+    fix = msg.status.status >= NavSatStatus.STATUS_FIX
+    lat, lon, alt = float(msg.latitude), float(msg.longitude), float(msg.altitude)
+    p = geodetic_to_enu(lat, lon, alt, *origin) if fix else np.full(3, math.nan)
+    cov = _finite_cov(msg.position_covariance, 3, topic) if fix else np.full((3, 3), math.nan)
+    return GpsSample("gps", t, t, frame, bool(fix), lat, lon, alt, np.asarray(p, float).reshape(3), cov, origin)

@@ -12,9 +12,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .config import SENSOR_NAMES
 from .geodesy import enu_to_geodetic
 
-__all__ = ["Sample", "ImuSample", "PressureSample", "DvlSample", "AltimeterSample", "GpsSample"]
+__all__ = ["Sample", "ImuSample", "PressureSample", "DvlSample", "AltimeterSample", "GpsSample", "sample_order"]
+
+_SENSOR_ORDER = {name: i for i, name in enumerate(SENSOR_NAMES)}
+
+
+def sample_order(s: "Sample") -> tuple[int, int, int]:
+    """The order samples come out of the sensors: by the time they are out of the sensor, then their time of
+    validity, both to the nanosecond (as the message stamps carry them, so samples read back from the topics sort
+    the same), then the sensor (:data:`~bb2_sim.sensors.config.SENSOR_NAMES`)."""
+    return (round(s.t_available * 1e9), round(s.t * 1e9), _SENSOR_ORDER[s.sensor])
 
 
 @dataclass(frozen=True)

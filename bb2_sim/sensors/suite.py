@@ -25,7 +25,7 @@ from .faults import FaultInjector
 from .gps import GpsModel
 from .imu import ImuModel
 from .pressure import PressureModel
-from .samples import Sample
+from .samples import Sample, sample_order
 from .truth import TruthSample, interpolate
 
 __all__ = ["SensorEnvironment", "SensorSuite", "sea_of_model"]
@@ -110,16 +110,13 @@ class SensorSuite:
                 s = self.faults.apply(s)
                 if s is not None:
                     self._pending.append(s)
-        order = {n: i for i, n in enumerate(SENSOR_NAMES)}
-        ready = sorted((s for s in self._pending if s.t_available < t_end - _EPS),
-                       key=lambda s: (s.t_available, s.t, order[s.sensor]))
+        ready = sorted((s for s in self._pending if s.t_available < t_end - _EPS), key=sample_order)
         self._pending = [s for s in self._pending if not s.t_available < t_end - _EPS]
         return ready
 
     def flush(self) -> list[Sample]:
         """The samples still in the sensors' latency (at the end of a run)."""
-        order = {n: i for i, n in enumerate(SENSOR_NAMES)}
-        out = sorted(self._pending, key=lambda s: (s.t_available, s.t, order[s.sensor]))
+        out = sorted(self._pending, key=sample_order)
         self._pending = []
         return out
 
