@@ -16,10 +16,16 @@ simulator and the monitor, ``bb2ap<pid>`` with the autopilot) joined by a veth p
 Usage::
 
     python examples/hil/run_hil.py [--mission missions/canyon.yaml] [--duration 60] [--rate-hz 20]
-        [--mode realtime|lockstep] [--command-timeout 0.5] [--netns] [--domain-id N] [--summary hil.json]
+        [--mode realtime|lockstep] [--sensors tactical|mems|FILE] [--command-timeout 0.5] [--netns]
+        [--domain-id N] [--summary hil.json] [--trajectory states.csv]
 
 ``--mode lockstep`` shows the software-in-the-loop handshake instead: the simulator waits for the commands of
 each step (the autopilot then answers the reliable ``/bb2/state_native``) and runs as fast as both allow.
+
+``--sensors SUITE``: the boat carries the sensor suite SUITE (``tactical``, ``mems`` or a suite file) and the
+autopilot flies on its sensors alone (``--state-source sensors``: ``/bb2/sensors/*`` into its own navigation
+filter), not on the simulator's state.  The mission the processes get is the given one with ``sensors: SUITE`` and
+``navigation: sensors`` (written beside the summary).
 
 Exit status: 0 the flight finished with finite states and no failsafe after the autopilot took over;
 1 otherwise (the monitor's summary says why).
@@ -141,10 +147,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--rate-hz", type=float, default=20.0, help="simulator steps per wall second (20 = real time)")
     p.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime",
                    help="simulator time mode; lockstep: the autopilot answers /bb2/state_native (default realtime)")
+    p.add_argument("--sensors", default=None, metavar="SUITE",
+                   help="fly on the sensors of this suite (tactical, mems or a suite file) instead of the state")
     p.add_argument("--command-timeout", type=float, default=0.5, help="simulator failsafe timeout, wall s")
     p.add_argument("--netns", action="store_true", help="autopilot on another network host (namespaces, root)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: random in 100..230)")
     p.add_argument("--summary", type=Path, default=None, help="write the monitor's JSON summary here")
+    p.add_argument("--trajectory", type=Path, default=None,
+                   help="the simulator writes every state (t and the native state, CSV) here")
     args = p.parse_args(argv)
     for flag, v in (("--duration", args.duration), ("--rate-hz", args.rate_hz),
                     ("--command-timeout", args.command_timeout)):
@@ -172,20 +182,32 @@ def main(argv: list[str] | None = None) -> int:
     code = 1
     try:
         mission = str(args.mission.resolve())
+        source = ["--state-source", "native" if args.mode == "lockstep" else "odometry"]
+        if args.sensors is not None:
+            import yaml
+
+            derived = summary_file.with_suffix(".mission.yaml")
+            from bb2_sim.sensors import PRESETS
+
+            suite = args.sensors if args.sensors in PRESETS else str(Path(args.sensors).resolve())
+            derived.write_text(yaml.safe_dump({"extends": mission, "sensors": suite,
+                                               "navigation": "sensors"}, sort_keys=False))
+            mission = str(derived)
+            source = ["--state-source", "sensors", "--tick", "handshake" if args.mode == "lockstep" else "clock"]
         monitor = Proc("monitor", [sys.executable, str(HERE / "monitor.py"), "--mission", mission,
                                    "--summary", str(summary_file), "--timeout", str(args.duration / args.rate_hz * 20
                                                                                    + 120)],
                        env, net.bench if net else None)
         autopilot = Proc("autopilot", [sys.executable, str(HERE / "external_autopilot.py"), "--mission", mission,
-                                       "--state-source", "native" if args.mode == "lockstep" else "odometry"],
-                         env, net.autopilot if net else None)
+                                       *source], env, net.autopilot if net else None)
         procs += [monitor, autopilot]
         if not (autopilot.wait_for("external autopilot ready", 60) and monitor.wait_for("hil monitor ready", 60)):
             print("run_hil: the autopilot or the monitor did not come up", file=sys.stderr)
             return 1
         params = simulator_params(summary_file.with_suffix(".params.yaml"), time_mode=args.mode,
                                   rate_hz=args.rate_hz, duration_s=args.duration,
-                                  command_timeout_s=args.command_timeout)
+                                  command_timeout_s=args.command_timeout,
+                                  **({"trajectory_csv": str(args.trajectory.resolve())} if args.trajectory else {}))
         sim = Proc("simulator", [sys.executable, "-m", "bb2_ros.simulator", "--ros-args", "--params-file",
                                  str(params), "-p", f"mission_file:={mission}"], env, net.bench if net else None)
         procs.append(sim)

@@ -142,6 +142,91 @@ def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
     assert s["state_finite"] and not s["failsafe_after_release"] and s["e_vertical_max_m"] < MAX_PATH_ERROR_M
 
 
+def _autopilot_subscriptions(lst: Listener, proc: subprocess.Popen, timeout_s: float = 120.0) -> set[str]:
+    """The topics the running ``external_autopilot`` node subscribes to, as the graph shows them (polled until its
+    sensor subscriptions are discovered)."""
+    deadline = time.monotonic() + timeout_s
+    topics: set[str] = set()
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            topics = {n for n, _ in lst.node.get_subscriber_names_and_types_by_node("external_autopilot", "/")}
+        except Exception:  # noqa: BLE001 - not discovered yet (rclpy raises NodeNameNonExistentError)
+            topics = set()
+        if "/bb2/sensors/imu" in topics:
+            return topics
+        time.sleep(0.2)
+    return topics
+
+
+def _sensors_mission(tmp_path: Path, duration_s: float) -> Path:
+    m = tmp_path / "canyon_short.yaml"
+    m.write_text(f"extends: {MISSION}\nname: canyon_short\nduration_s: {duration_s:g}\n")
+    return m
+
+
+def test_external_autopilot_on_sensors_alone_in_lockstep_is_the_library_runner(tmp_path):
+    """The worked autopilot flying on the sensors only (``--sensors tactical``: ``/bb2/sensors/*`` into its own
+    navigation filter, the lockstep handshake's stamp as its tick): the graph shows it subscribed to nothing of the
+    truth, and the flight is the library runner's with the same mission (``sensors: tactical``, ``navigation:
+    sensors``), step for step."""
+    from bb2_msgs_py.sensor_conversions import NAVIGATION_SENSOR_TOPICS
+
+    from rosenv import library_trajectory
+
+    duration = 15.0
+    mission = _sensors_mission(tmp_path, duration)
+    states = tmp_path / "states.csv"
+    domain_id, lst = _quiet_listener()
+    try:
+        proc = subprocess.Popen([sys.executable, str(RUN_HIL), "--mission", str(mission), "--duration",
+                                 str(duration), "--mode", "lockstep", "--sensors", "tactical", "--domain-id",
+                                 str(domain_id), "--summary", str(tmp_path / "hil.json"), "--trajectory", str(states)],
+                                cwd=REPO, env=ros_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        try:
+            subs = _autopilot_subscriptions(lst, proc)
+            out, _ = proc.communicate(timeout=240)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    finally:
+        lst.close()
+    assert proc.returncode == 0, out[-4000:]
+    assert "state from /bb2/sensors/* (suite tactical, tick handshake)" in out, out[-3000:]
+    # what it reads: the sensors, and the handshake's stamp -- no odometry, no truth IMU/depth, no INS estimate
+    assert set(NAVIGATION_SENSOR_TOPICS) <= subs, subs
+    assert subs - set(NAVIGATION_SENSOR_TOPICS) <= {"/bb2/state_native", "/parameter_events"}, subs
+    got = np.loadtxt(states, delimiter=",", skiprows=1)
+    expected_mission = tmp_path / "expected.yaml"
+    expected_mission.write_text(f"extends: {mission}\nsensors: tactical\nnavigation: sensors\n")
+    want = library_trajectory(expected_mission)
+    assert got.shape == want.shape == (int(duration / 0.05) + 1, 13), (got.shape, want.shape)
+    np.testing.assert_array_equal(got[:, 0], want[:, 0])
+    err = np.max(np.abs(got[:, 1:] - want[:, 1:]))
+    assert err < 1e-9, err  # measured 5e-14 (the sample stamps carry the times to the nanosecond)
+    assert np.max(np.abs(got[-1, 1:4] - got[0, 1:4])) > 20.0  # it flew
+
+
+def test_external_autopilot_on_sensors_alone_in_real_time(tmp_path):
+    """The same autopilot on the bench clock (``/clock`` ticks, real time): it takes over and flies the mission
+    within the path error bound on its own estimate, with no failsafe after the takeover."""
+    duration = 12.0
+    summary = tmp_path / "hil.json"
+    proc = subprocess.run([sys.executable, str(RUN_HIL), "--mission", str(MISSION), "--duration", str(duration),
+                           "--sensors", "tactical", "--domain-id", str(random.randint(100, 230)), "--summary",
+                           str(summary)], cwd=REPO, env=ros_env(), capture_output=True, text=True,
+                          timeout=duration + 120)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out[-4000:]
+    assert "tick clock" in out, out[-3000:]
+    s = json.loads(summary.read_text())
+    assert s["state_finite"] and s["t_last_s"] == pytest.approx(duration)
+    assert max(s["e_horizontal_max_m"], s["e_vertical_max_m"]) < MAX_PATH_ERROR_M, s
+    assert s["failsafe_released_at_s"] is not None and s["failsafe_released_at_s"] < 5.0 \
+        and not s["failsafe_after_release"], s
+    assert s["final_status"]["state"] == "finished" and s["final_status"]["mode"] == "realtime"
+
+
 @pytest.mark.skipif(os.geteuid() != 0 or shutil.which("ip") is None, reason="network namespaces need root and iproute2")
 def test_external_autopilot_on_another_network_host(tmp_path):
     probe = subprocess.run(["ip", "netns", "add", f"bb2probe{os.getpid()}"], capture_output=True, text=True)
