@@ -70,6 +70,7 @@ TF_STATIC_TOPIC = "/tf_static"
 # tf2_ros::StaticBroadcasterQoS: reliable, transient local, keep last 1
 TF_STATIC_QOS = qos_entry(reliability="reliable", durability="transient_local", history="keep_last", depth=1)
 MOUNTINGS_TOPIC = "/bb2/sensors/mountings"
+DRAIN_TIMEOUT_S = 5.0  # at the stop, take what the readers hold for at most this long (wall s)
 
 
 def qos_to_entry(profile) -> dict[str, Any]:
@@ -561,6 +562,13 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"bb2-record: error while recording: {exc!r}", file=sys.stderr)
         code = 1
     finally:
+        try:  # what DDS delivered before the stop goes into the bag too (it waits in the readers, untaken)
+            deadline = time.monotonic() + DRAIN_TIMEOUT_S
+            while rec.spin_once(0.0) and time.monotonic() < deadline:
+                pass
+        except Exception as exc:  # noqa: BLE001 - report, then still finish the bag
+            print(f"bb2-record: error while taking the last messages: {exc!r}", file=sys.stderr)
+            code = 1
         path = rec.close()
         counts = {n: t.message_count for n, t in bag.topics.items()}
         print(f"bb2-record: wrote {bag.message_count} messages to {path}: {counts}", flush=True)
