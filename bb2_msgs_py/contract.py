@@ -39,6 +39,8 @@ class ContractError(ValueError):
 
 # ----------------------------------------------------------------------------------------- frames
 FRAME_MAP = "map"
+SCENE_TOPIC = "/bb2/scene/markers"
+SEA_SURFACE_TOPIC = "/bb2/scene/sea_surface"
 """World frame, ENU, origin at the native earth origin (calm surface, z = 0)."""
 FRAME_ODOM = "odom"
 """Odometry frame, ENU; identical to ``map`` (ground truth, no drift)."""
@@ -250,6 +252,14 @@ CONTRACT: tuple[TopicSpec, ...] = (
               "JSON (format bb2_sensor_mountings/1): frame, parent base_link, translation m, quaternion (x, y, z, w), "
               "rate_hz per sensor; the suite and its seed", SIM, (RECORDER, EXTERNAL),
               "the sensors' mountings (the /tf_static of the suite: tf2_msgs is not in the wheels) and rates"),
+    TopicSpec(SCENE_TOPIC, "visualization_msgs/msg/MarkerArray", "latched", "base_link (hull); map (terrain, sea)",
+              "m: TRIANGLE_LIST markers, ns bb2/hull, bb2/terrain, bb2/sea_surface (calm: the plane z = 0)", SIM,
+              (RECORDER, EXTERNAL), "the scene for RViz / Foxglove, once at start: the ROM's own hull surfaces, the "
+              "mission's terrain (bb2_msgs_py.scene_markers)"),
+    TopicSpec(SEA_SURFACE_TOPIC, "visualization_msgs/msg/MarkerArray", "measurement", "map",
+              "m: a TRIANGLE_LIST (ns bb2/sea_surface), the free-surface elevation on a 160 m square around the CG",
+              SIM, (RECORDER, EXTERNAL), "the wavy sea around the boat every scene_sea_period_s of sim time "
+              "(simulator parameter; waves only)"),
     TopicSpec("/bb2/recorder/ack", "std_msgs/msg/Header", "command", "-",
               "stamp: sim time up to which the recorder holds every per-step topic of the simulator", RECORDER,
               (SIM, RECORDER),

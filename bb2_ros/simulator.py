@@ -110,6 +110,8 @@ from bb2_mission.components import (build_model, build_navigation_filter, build_
 from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, RecorderAck,
                                        StepDecision, TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
+from bb2_msgs_py import scene_markers
+from bb2_msgs_py.contract import SCENE_TOPIC, SEA_SURFACE_TOPIC
 from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS, mountings_json, sample_messages
 from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT, message_class, qos_profile
 from bb2_sim.integrator import NonFiniteStateError
@@ -120,9 +122,10 @@ from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, bui
                                  require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
-              "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics")
+              "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics",
+              SCENE_TOPIC, SEA_SURFACE_TOPIC)
 # a late reader still gets these: no reason to wait for one before the first step
-LATCHED_OUT = ("/bb2/sea", "/bb2/sensors/mountings")
+LATCHED_OUT = ("/bb2/sea", "/bb2/sensors/mountings", SCENE_TOPIC)
 TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress",  # progress: end_at_progress
              "/bb2/recorder/ack")  # recorder_ack_window
 TWO_PI = 2.0 * math.pi
@@ -185,6 +188,12 @@ class Simulator(Node):
         self.end_at_progress = bool(P("end_at_progress", False, "also end the run (as at the duration) once "
                                       "/bb2/mission/progress reaches 1: the path flown, where bb2-launch and the "
                                       "library runner end it (the launch files set it)"))
+        self.scene = bool(P("scene_markers", True, f"publish the hull, the terrain and the calm sea plane on "
+                                                  f"{SCENE_TOPIC} (latched, once at start) for RViz / Foxglove"))
+        sea_period = float(P("scene_sea_period_s", -1.0,
+                             f"sim s between two free-surface markers around the boat on {SEA_SURFACE_TOPIC} "
+                             f"(waves only); 0 = none; < 0 = auto: 1 s in real time, none in lockstep (about "
+                             f"7 ms each, which a lockstep run would wait for)"))
         csv_path = P("trajectory_csv", "", "write t and the native state of every step to this CSV ('' = off)")
         sea_file = P("sea_file", "", "'' = the mission's sea and current; else a YAML/JSON file with sea: and/or "
                                      "current: blocks, or a bb2_sea/1 description (a bag's /bb2/sea), replacing them")
@@ -279,6 +288,14 @@ class Simulator(Node):
 
         from std_msgs.msg import String
         self.pub["/bb2/sea"].publish(String(data=self.environment.description_json(self.g)))
+        from bb2_sim.maneuvers import model_sea
+        self.sea = model_sea(self.sim.model)
+        if sea_period < 0:
+            sea_period = 1.0 if self.time_mode is TimeMode.REALTIME else 0.0
+        self.sea_period_s = sea_period if self.sea is not None and self.scene else 0.0
+        self._sea_next_t = self.sim.t
+        if self.scene:
+            self._publish_scene()
         if self.suite is not None:
             self.pub["/bb2/sensors/mountings"].publish(String(data=mountings_json(self.suite.config,
                                                                                  self.sensor_spec.seed)))
@@ -591,8 +608,27 @@ class Simulator(Node):
         self.pub["/bb2/state_native"].publish(self._state_native_msg)
         self.gate.state_sent(time.monotonic())
 
+    def _publish_scene(self) -> None:
+        """The latched scene: the hull (base_link), the terrain and, in a calm sea, the plane z = 0 (map)."""
+        sm = scene_markers
+        markers = [sm.hull_marker(self.sim.model.surfaces, self.sim.t)]
+        if self.terrain is not None:
+            markers.append(sm.terrain_marker(self.terrain, self.sim.t))
+        if self.sea is None:
+            markers.append(sm.sea_surface_marker(None, self.sim.x[0:2], self.sim.t, half_size_m=1000.0, cells=2))
+        self.pub[SCENE_TOPIC].publish(sm.marker_array(markers))
+
+    def _publish_sea_surface(self) -> None:
+        """The free surface around the boat, every ``scene_sea_period_s`` of sim time (waves only)."""
+        if self.sea_period_s <= 0 or self.sim.t < self._sea_next_t - 1e-9:
+            return
+        self._sea_next_t = (math.floor(self.sim.t / self.sea_period_s + 1e-9) + 1.0) * self.sea_period_s
+        self.pub[SEA_SURFACE_TOPIC].publish(scene_markers.marker_array(
+            [scene_markers.sea_surface_marker(self.sea.elevation, self.sim.x[0:2], self.sim.t)]))
+
     def _publish_sensors(self) -> None:
         """Odometry, depth and altitude of the current step."""
+        self._publish_sea_surface()
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
         t = state.t
         self._odom_msg = cv.state_to_odometry(state)

@@ -209,14 +209,21 @@ class ManeuverCommander:
         return planes, rps
 
 
+def model_sea(model: BB2Model):
+    """The model's sea as a :class:`bb2_sim.sea.sea.Sea` (``elevation(x, y, t)`` on arrays of native earth
+    points), or None when it is calm."""
+    if model.sea is not None:
+        return model.sea
+    if model.wave.calm:
+        return None
+    from .sea.sea import AuthorsTableSea
+    return AuthorsTableSea(model.wave, model.params.g)
+
+
 def surface_elevation(model: BB2Model, x_earth: float, y_earth: float, t: float) -> float:
     """Free-surface elevation (m, z up) of the model's sea at the earth point (x, y) at time t."""
-    if model.sea is not None:
-        return float(model.sea.elevation(x_earth, y_earth, t))
-    if model.wave.calm:
-        return 0.0
-    from .sea.sea import AuthorsTableSea
-    return float(AuthorsTableSea(model.wave, model.params.g).elevation(x_earth, y_earth, t))
+    sea = model_sea(model)
+    return 0.0 if sea is None else float(sea.elevation(x_earth, y_earth, t))
 
 
 def record_row(rec: StepRecord, model: BB2Model) -> list[float]:

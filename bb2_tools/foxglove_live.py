@@ -69,9 +69,11 @@ class FoxgloveBridge(Node):
             self.channels[spec.name] = foxglove.Channel(spec.name, schema=foxglove_schema(spec.type),
                                                         message_encoding="cdr")
         # source topic -> (derived tf topic, its channel), as the recorder derives them for bags
+        # (one channel per derived topic: /tf_static comes from the mountings and from the scene)
+        tf_channels = {d: foxglove.Channel(d, schema=foxglove_schema(TF_TYPE), message_encoding="cdr")
+                       for d in sorted({DERIVED_TOPICS[s.name] for s in self.specs if s.name in DERIVED_TOPICS})}
         self.derived: dict[str, tuple[str, Any]] = {
-            s.name: (DERIVED_TOPICS[s.name], foxglove.Channel(DERIVED_TOPICS[s.name], schema=foxglove_schema(TF_TYPE),
-                                                              message_encoding="cdr"))
+            s.name: (DERIVED_TOPICS[s.name], tf_channels[DERIVED_TOPICS[s.name]])
             for s in self.specs if self.tf and s.name in DERIVED_TOPICS}
         try:
             self.server = foxglove.start_server(name="bb2_sim", host=host, port=int(port))

@@ -70,6 +70,7 @@ TF_STATIC_TOPIC = "/tf_static"
 # tf2_ros::StaticBroadcasterQoS: reliable, transient local, keep last 1
 TF_STATIC_QOS = qos_entry(reliability="reliable", durability="transient_local", history="keep_last", depth=1)
 MOUNTINGS_TOPIC = "/bb2/sensors/mountings"
+SCENE_TOPIC = "/bb2/scene/markers"
 DRAIN_TIMEOUT_S = 5.0  # at the stop, take what the readers hold for at most this long (wall s)
 
 
@@ -160,17 +161,31 @@ def tf_static_cdr_from_mountings_cdr(data: bytes, stamp_ns: int) -> bytes:
     return encode(tf_static_from_mountings(doc, stamp_ns))
 
 
-DERIVED_TOPICS = {ODOM_TOPIC: TF_TOPIC, MOUNTINGS_TOPIC: TF_STATIC_TOPIC}
-"""Contract topic -> the tf topic derived from it (tf2_msgs is not in the wheels: the nodes cannot publish these)."""
+def tf_static_map_odom(stamp_ns: int) -> dict[str, Any]:
+    """A ``tf2_msgs/TFMessage`` (as nested dicts) with the identity ``map -> odom`` (the odometry is the ground
+    truth: odom is map), stamped ``stamp_ns``: it joins what is drawn in ``map`` (the path, the terrain, the sea)
+    to the tree of ``odom -> base_link``."""
+    sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+    return {"transforms": [{"header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": "map"},
+                            "child_frame_id": "odom",
+                            "transform": {"translation": {"x": 0.0, "y": 0.0, "z": 0.0},
+                                          "rotation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}}]}
+
+
+DERIVED_TOPICS = {ODOM_TOPIC: TF_TOPIC, MOUNTINGS_TOPIC: TF_STATIC_TOPIC, SCENE_TOPIC: TF_STATIC_TOPIC}
+"""Contract topic -> the tf topic derived from it (tf2_msgs is not in the wheels: the nodes cannot publish these):
+``/tf`` from the odometry, ``/tf_static`` from the sensor mountings and, with the scene, ``map -> odom``."""
 
 
 def derived_tf_cdr(topic: str, data: bytes, stamp_ns: int) -> bytes:
     """The CDR of the tf topic derived from a message of ``topic`` (:data:`DERIVED_TOPICS`): ``/tf`` from
     ``/bb2/odom``, ``/tf_static`` (stamped ``stamp_ns``) from ``/bb2/sensors/mountings``; ValueError, KeyError or
-    TypeError on a mountings description it cannot read.  What the recorder writes into bags and the Foxglove
-    bridge serves."""
+    TypeError on a mountings description it cannot read; the identity ``map -> odom`` from the scene
+    (``/bb2/scene/markers``).  What the recorder writes into bags and the Foxglove bridge serves."""
     if topic == ODOM_TOPIC:
         return tf_cdr_from_odometry_cdr(data)
+    if topic == SCENE_TOPIC:
+        return _tf_codec()[2](tf_static_map_odom(stamp_ns))
     return tf_static_cdr_from_mountings_cdr(data, stamp_ns)
 
 
