@@ -80,7 +80,8 @@ def test_colcon_build_the_whole_workspace(env, tmp_path, mode):
     built = {p.name for p in (tmp_path / "install").iterdir() if (p / "share" / p.name / "package.xml").exists()}
     assert built == set(ORDER)
     share = tmp_path / "install" / "bb2_bringup" / "share" / "bb2_bringup"
-    for f in ("launch/bb2_graph.launch.py", "launch/fleet.launch.py", "config/bb2_graph.yaml", "missions/canyon.yaml"):
+    for f in ("launch/bb2_graph.launch.py", "launch/fleet.launch.py", "config/bb2_graph.yaml",
+              "config/foxglove_layout.json", "missions/canyon.yaml"):
         assert (share / f).is_file(), f
         assert (share / f).is_symlink() == (mode == "symlink"), f
     assert not list((WS / "src").rglob("*.egg-info")), "colcon must leave the source space clean"

@@ -17,7 +17,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/launch', sorted(glob('launch/*.launch.py'))),
-        ('share/' + package_name + '/config', ['config/bb2_graph.yaml']),
+        ('share/' + package_name + '/config', ['config/bb2_graph.yaml', 'config/foxglove_layout.json']),
         ('share/' + package_name + '/missions', sorted(glob('missions/*.yaml'))),
     ],
     install_requires=['setuptools'],
