@@ -29,9 +29,10 @@ other one is read-only (fixed at start-up; the set is refused):
 ``hold_cpu_dma_latency`` real time: hold ``/dev/cpu_dma_latency`` at 0 us while running (the PM QoS request
                        of cyclictest and RT setups: idle cores wake without deep C-state or halt exits;
                        measured here: a DDS round trip 150 -> 102 us).  Refused (not root): one warning.
-``wait_for_readers``   publish the first state only once every topic this node publishes has had a reader (a
-                       recorder started alongside) for ``startup_settle_s`` (the readers' side matches the
-                       writers a moment later: it then misses nothing), at most ``startup_timeout_s``.
+``wait_for_readers``   publish the first state only once every topic this node publishes has had a reader of the
+                       node ``reader_node`` (``recorder``; '' = any node) for ``startup_settle_s`` (the readers'
+                       side matches the writers a moment later: it then misses nothing), at most
+                       ``startup_timeout_s``.
 ``recorder_ack_window`` lockstep: step at most this many steps ahead of the newest ``/bb2/recorder/ack`` (the
                        recorder's acknowledgement of the states it holds), so a stalled recorder slows the graph
                        instead of losing messages (the controllers' answer is held meanwhile: no re-send, no
@@ -205,6 +206,8 @@ class Simulator(Node):
         self.wait_for_readers = bool(P("wait_for_readers", False,
                                        "publish the first state only once every topic published here has a "
                                        "reader (a recorder), at most startup_timeout_s"))
+        self.reader_node = str(P("reader_node", "recorder", "with wait_for_readers: the node whose readers are "
+                                 "waited for (another reader, e.g. a Foxglove bridge, does not count); '' = any"))
         ack_window = int(P("recorder_ack_window", 0, "lockstep: step at most this many steps ahead of the newest "
                              "/bb2/recorder/ack (a stalled recorder slows the graph, loses nothing); 0 = do not wait"))
         if ack_window < 0:
@@ -412,7 +415,11 @@ class Simulator(Node):
         """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
         after ``startup_timeout_s``), so that a recorder or a test started with the graph misses nothing."""
         n = self.count_subscribers(self.resolve_topic_name("/bb2/state_native"))  # rclpy counts unremapped names
-        readers = lambda t: self.count_subscribers(self.resolve_topic_name(t))  # noqa: E731  (after -r remaps)
+        def readers(t: str) -> int:  # after -r remaps; the reader node's own readers
+            name = self.resolve_topic_name(t)
+            if not self.reader_node:
+                return self.count_subscribers(name)
+            return sum(i.node_name == self.reader_node for i in self.get_subscriptions_info_by_topic(name))
         unread = [t for t in self.pub if t not in LATCHED_OUT and readers(t) == 0] if self.wait_for_readers else []
         now = time.monotonic()
         if self.wait_for_readers and not unread:  # every topic read: let the readers' side match too

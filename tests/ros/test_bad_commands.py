@@ -272,7 +272,8 @@ def test_realtime_thread_gives_up_fifo_when_it_overruns_every_step(bench):
 
 def test_wait_for_readers_holds_the_first_state_until_a_recorder_reads_every_topic(bench, tmp_path):
     """bb2-launch starts the simulator alongside the recorder with wait_for_readers: no state (and no /clock)
-    goes out while a published topic has no reader, so the bag starts with the very first message."""
+    goes out while a published topic has no reader of the recorder's (a Foxglove bridge reading them all does not
+    count), so the bag starts with the very first message."""
     from bb2_tools.bagfile import BagReader
 
     from rosenv import ros_env
@@ -282,6 +283,17 @@ def test_wait_for_readers_holds_the_first_state_until_a_recorder_reads_every_top
     b.wait(lambda: b.node.count_publishers("/bb2/state_native") > 0, 20, "simulator up", sim)
     time.sleep(2.0)
     assert not b.states  # the bench reads state, planes and status only: /clock, /bb2/odom ... have no reader
+    # a Foxglove bridge reads every topic too, but it is not the recorder (reader_node): still no state
+    bridge = subprocess.Popen([sys.executable, "-m", "bb2_tools.foxglove_live", "--ros-args", "-p", "port:=0"],
+                              cwd=REPO, env=ros_env(b.domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                              text=True)
+    try:
+        b.wait(lambda: b.node.count_subscribers("/bb2/odom") > 0, 30, "the bridge reading the topics", sim)
+        time.sleep(2.0)
+        assert not b.states, "the simulator started on the Foxglove bridge's readers, not the recorder's"
+    except BaseException:
+        bridge.kill()
+        raise
     bag = tmp_path / "bag"
     rec = subprocess.Popen([sys.executable, "-m", "bb2_tools.recorder", "--out", str(bag), "--use-sim-time"],
                            cwd=REPO, env=ros_env(b.domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -293,6 +305,8 @@ def test_wait_for_readers_holds_the_first_state_until_a_recorder_reads_every_top
     finally:
         rec.send_signal(signal.SIGINT)
         out = rec.communicate(timeout=30)[0]
+        bridge.send_signal(signal.SIGINT)
+        bridge.communicate(timeout=30)
     assert rec.returncode == 0, out
     reader = BagReader(bag)
     counts = reader.message_counts
