@@ -194,7 +194,7 @@ class Simulator(Node):
         sea_period = float(P("scene_sea_period_s", -1.0,
                              f"sim s between two free-surface markers around the boat on {SEA_SURFACE_TOPIC} "
                              f"(waves only); 0 = none; < 0 = auto: 1 s in real time, none in lockstep (about "
-                             f"7 ms each, which a lockstep run would wait for)"))
+                             f"11 ms each, which a lockstep run would wait for)"))
         csv_path = P("trajectory_csv", "", "write t and the native state of every step to this CSV ('' = off)")
         sea_file = P("sea_file", "", "'' = the mission's sea and current; else a YAML/JSON file with sea: and/or "
                                      "current: blocks, or a bb2_sea/1 description (a bag's /bb2/sea), replacing them")
