@@ -264,7 +264,8 @@ class Simulator(Node):
         def pub(name):
             return contract_publisher(node, name)
 
-        self.pub = {n: pub(n) for n in TOPICS_OUT if n != "/bb2/altitude" or self.terrain is not None}
+        self.pub = {n: pub(n) for n in TOPICS_OUT if (n != "/bb2/altitude" or self.terrain is not None)
+                    and n not in (SCENE_TOPIC, SEA_SURFACE_TOPIC)}  # the scene's: below, when they are published
         if self.suite is not None:
             self.pub.update({n: pub(n) for n in SENSOR_TOPICS})
         if self.nav is not None:
@@ -297,7 +298,10 @@ class Simulator(Node):
             sea_period = 1.0 if self.time_mode is TimeMode.REALTIME else 0.0
         self.sea_period_s = sea_period if self.sea is not None and self.scene else 0.0
         self._sea_next_t = self.sim.t
+        if self.sea_period_s > 0:
+            self.pub[SEA_SURFACE_TOPIC] = pub(SEA_SURFACE_TOPIC)
         if self.scene:
+            self.pub[SCENE_TOPIC] = pub(SCENE_TOPIC)
             self._publish_scene()
         if self.suite is not None:
             self.pub["/bb2/sensors/mountings"].publish(String(data=mountings_json(self.suite.config,
