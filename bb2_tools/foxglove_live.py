@@ -7,7 +7,10 @@ Foxglove: *Open connection* -> *Foxglove WebSocket* -> ``ws://127.0.0.1:8765``.
 It reads every topic of the contract (:func:`bb2_msgs_py.contract.select_topics`) with the QoS a reader of it asks
 for, as raw CDR, and logs each message unchanged on a Foxglove channel of the same name (message encoding ``cdr``,
 schema ``ros2msg``: the type's definition with its dependencies, as in our bags), with the log time the recorder
-gives it (the node's clock: the simulation time with ``use_sim_time``).  tf2_msgs is not in the wheels, so, as the
+gives it (the node's clock: the simulation time with ``use_sim_time``).  The latched topics (the scene, the path, the
+sea, the mountings) and the ``/tf_static`` derived from them are sent again to a client when it subscribes, as a
+DDS transient-local reader would get them: a viewer connecting mid-run still sees the hull, the path and the frames.
+tf2_msgs is not in the wheels, so, as the
 recorder does for bags, it derives ``/tf`` (``odom -> base_link``) from ``/bb2/odom`` and ``/tf_static`` (the
 sensor mountings) from ``/bb2/sensors/mountings``: the 3-D panel shows the vehicle and its sensor frames.  The
 server is made by foxglove-sdk (:func:`foxglove.start_server`), which advertises every channel at start, so a client
@@ -19,6 +22,7 @@ machines), ``tf_from_odom`` (default true), ``topics`` (regular expressions of c
 from __future__ import annotations
 
 import sys
+import threading
 from typing import Any, Sequence
 
 from rclpy.node import Node
@@ -75,14 +79,21 @@ class FoxgloveBridge(Node):
         self.derived: dict[str, tuple[str, Any]] = {
             s.name: (DERIVED_TOPICS[s.name], tf_channels[DERIVED_TOPICS[s.name]])
             for s in self.specs if self.tf and s.name in DERIVED_TOPICS}
+        # the latched topics' last messages (and the /tf_static derived from them), sent again to every client
+        # that subscribes later: a viewer that connects mid-run still gets the hull, the path, the sea, the frames
+        self._latched_topics = {s.name for s in self.specs if s.qos_description.durability == "transient_local"
+                                and s.qos_description.depth == 1}
+        self._latched: dict[tuple[str, str], tuple[Any, bytes, int]] = {}  # (source, channel topic) -> last
+        self._latched_lock = threading.Lock()
         try:
-            self.server = foxglove.start_server(name="bb2_sim", host=host, port=int(port))
+            self.server = foxglove.start_server(name="bb2_sim", host=host, port=int(port),
+                                                server_listener=_LatchedReplay(self))
         except Exception as exc:  # e.g. the port is taken
             raise NodeConfigError(f"cannot serve on {host}:{port}: {exc}") from None
         self.subs = [self.create_subscription(message_class(s.type), s.name, self._forwarder(s.name),
                                               qos_profile(s.name, reader=True), raw=True) for s in self.specs]
         self.url = f"ws://{host}:{self.server.port}"
-        print(f"{NODE_NAME}: serving {len(self.channels) + len(self.derived)} topics on {self.url} "
+        print(f"{NODE_NAME}: serving {len(self.channels) + len(tf_channels)} topics on {self.url} "
               "(Foxglove: Open connection -> Foxglove WebSocket)", flush=True)
 
     def _forwarder(self, topic: str):
@@ -92,19 +103,48 @@ class FoxgloveBridge(Node):
         clock = self.get_clock()
         derived = self.derived.get(topic)
 
+        latched = topic in self._latched_topics
+
         def forward(data: bytes) -> None:
             t = clock.now().nanoseconds
             channel.log(data, log_time=t)
+            if latched:
+                with self._latched_lock:
+                    self._latched[(topic, topic)] = (channel, data, t)
             if derived is not None:
                 try:
-                    derived[1].log(derived_tf_cdr(topic, data, t), log_time=t)
+                    tf = derived_tf_cdr(topic, data, t)
                 except (ValueError, KeyError, TypeError) as exc:
                     self.get_logger().warning(f"{topic}: no {derived[0]} from it ({exc})")
+                    return
+                derived[1].log(tf, log_time=t)
+                if latched:
+                    with self._latched_lock:
+                        self._latched[(topic, derived[0])] = (derived[1], tf, t)
         return forward
+
+    def replay_latched(self, channel_topic: str) -> int:
+        """Send the latched messages of ``channel_topic`` again (a client just subscribed to it); returns how
+        many.  Every subscribed client gets them: for latched data (replaced by the same ids) that is harmless."""
+        with self._latched_lock:
+            todo = [v for (_src, ch), v in self._latched.items() if ch == channel_topic]
+        for channel, data, t in todo:
+            channel.log(data, log_time=t)
+        return len(todo)
 
     def close(self) -> None:
         """Stop the server (clients see the connection close)."""
         self.server.stop()
+
+
+class _LatchedReplay:
+    """The server's listener: a subscription to a latched channel gets its last messages again."""
+
+    def __init__(self, bridge: FoxgloveBridge):
+        self.bridge = bridge
+
+    def on_subscribe(self, client: Any, channel: Any) -> None:
+        self.bridge.replay_latched(channel.topic)
 
 
 def main(args: Sequence[str] | None = None) -> int:

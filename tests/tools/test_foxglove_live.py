@@ -168,7 +168,8 @@ def test_the_bridge_serves_every_contract_topic_and_the_derived_frames(tmp_path)
 
 def test_bb2_launch_foxglove_serves_the_flying_graph(tmp_path):
     """`bb2-launch MISSION --foxglove PORT`: a client connected while the mission flies (real time) decodes the
-    vehicle's odometry, one message per step in sim-time order; the launcher says where to connect and ends 0."""
+    vehicle's odometry, one message per step in sim-time order, and gets the latched scene when it subscribes to it
+    mid-run; the launcher says where to connect and ends 0."""
     mission = tmp_path / "short.yaml"
     mission.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: fox\nduration_s: 12.0\n")
     port = free_port()
@@ -187,6 +188,13 @@ def test_bb2_launch_foxglove_serves_the_flying_graph(tmp_path):
         assert all((o.header.frame_id, o.child_frame_id) == ("odom", "base_link") for o in odoms)
         logs = [ns for ns, _ in got]  # log times: the bridge's sim-time clock
         assert all(b >= a for a, b in zip(logs, logs[1:])) and 0 < logs[-1] <= 12.0e9 + 1, logs[:3]
+        # a viewer subscribing mid-run to the latched scene still gets it (the hull, published at the start), and
+        # the map -> odom frame derived from it
+        client.subscribe(["/bb2/scene/markers", "/tf_static"])
+        (_, scene), = client.messages("/bb2/scene/markers", 1, timeout_s=30)[:1]
+        markers = deserialize_message(scene, message_class("visualization_msgs/msg/MarkerArray")).markers
+        assert [m.ns for m in markers][:1] == ["bb2/hull"] and markers[0].header.frame_id == "base_link"
+        client.messages("/tf_static", 1, timeout_s=30)
     finally:
         if client is not None:
             client.close()
