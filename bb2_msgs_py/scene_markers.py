@@ -38,7 +38,7 @@ _D = np.diag(D_FLIP)
 
 def hull_triangles_flu(surfaces: Any) -> np.ndarray:
     """(N, 3, 3) triangles of every hull surface (planes undeflected) in base_link (FLU, origin the CG), m."""
-    return np.concatenate((surfaces.fixed_vertices,) + tuple(surfaces.plane_vertices)) * _D
+    return surfaces.all_triangles() * _D
 
 
 def _grid_triangles(X: np.ndarray, Y: np.ndarray, Z: np.ndarray) -> np.ndarray:

@@ -196,11 +196,7 @@ def mountings_json(suite_config, seed: int = 0) -> str:
 
 
 # ---------------------------------------------------------------------------------------- messages -> samples
-def _stamp_s(msg) -> float:
-    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-
-
-def _finite_cov(values, n: int, where: str) -> np.ndarray:
+def _cov(values, n: int, where: str) -> np.ndarray:
     from .conversions import ConversionError
 
     c = np.array(values, dtype=float)
@@ -221,14 +217,14 @@ def sample_from_message(topic: str, msg, suite_config=None):
     from bb2_sim.sensors.geodesy import geodetic_to_enu
     from bb2_sim.sensors.samples import DvlSample, GpsSample, ImuSample, PressureSample
 
-    from .conversions import ConversionError
+    from .conversions import ConversionError, stamp_to_seconds
 
     kinds = {"/bb2/sensors/imu": "imu", "/bb2/sensors/pressure": "pressure", DVL_TOPIC: "dvl", DVL_WATER_TOPIC: "dvl",
              "/bb2/sensors/gps": "gps"}
     kind = kinds.get(topic)
     if kind is None:
         raise ConversionError(f"no sensor sample is carried on {topic!r} (the sample topics: {sorted(kinds)})")
-    t = _stamp_s(msg)
+    t = stamp_to_seconds(msg.header.stamp)
     frame = msg.header.frame_id
     cfg = suite_config.sensors().get(kind) if suite_config is not None else None
     if suite_config is not None:
@@ -239,16 +235,16 @@ def sample_from_message(topic: str, msg, suite_config=None):
     if kind == "imu":
         o, w, f = msg.orientation, msg.angular_velocity, msg.linear_acceleration
         return ImuSample("imu", t, t, frame, np.array([w.x, w.y, w.z]), np.array([f.x, f.y, f.z]),
-                         np.array([o.x, o.y, o.z, o.w]), _finite_cov(msg.orientation_covariance, 3, topic),
-                         _finite_cov(msg.angular_velocity_covariance, 3, topic),
-                         _finite_cov(msg.linear_acceleration_covariance, 3, topic))
+                         np.array([o.x, o.y, o.z, o.w]), _cov(msg.orientation_covariance, 3, topic),
+                         _cov(msg.angular_velocity_covariance, 3, topic),
+                         _cov(msg.linear_acceleration_covariance, 3, topic))
     if kind == "pressure":
         return PressureSample("pressure", t, t, frame, float(msg.fluid_pressure), float(msg.variance))
     if kind == "dvl":
         v = msg.twist.twist.linear
         latency = float(cfg.latency_s) if cfg is not None else 0.0
         return DvlSample("dvl", t, t + latency, frame, topic == DVL_TOPIC, np.array([v.x, v.y, v.z]),
-                         _finite_cov(msg.twist.covariance, 6, topic)[0:3, 0:3], np.zeros(0), np.zeros(0, bool))
+                         _cov(msg.twist.covariance, 6, topic)[0:3, 0:3], np.zeros(0), np.zeros(0, bool))
     if suite_config is None:
         raise ConversionError(f"{topic}: a GPS fix needs the suite (its map origin) to give a position in map")
     from sensor_msgs.msg import NavSatStatus
@@ -257,5 +253,5 @@ def sample_from_message(topic: str, msg, suite_config=None):
     fix = msg.status.status >= NavSatStatus.STATUS_FIX
     lat, lon, alt = float(msg.latitude), float(msg.longitude), float(msg.altitude)
     p = geodetic_to_enu(lat, lon, alt, *origin) if fix else np.full(3, math.nan)
-    cov = _finite_cov(msg.position_covariance, 3, topic) if fix else np.full((3, 3), math.nan)
+    cov = _cov(msg.position_covariance, 3, topic) if fix else np.full((3, 3), math.nan)
     return GpsSample("gps", t, t, frame, bool(fix), lat, lon, alt, np.asarray(p, float).reshape(3), cov, origin)

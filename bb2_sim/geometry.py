@@ -90,22 +90,23 @@ class HullSurfaces:
     fixed_parts: tuple[tuple[str, int], ...] = field(default=())
     """(part or file name, triangle count) of the fixed triangles, in concatenation order."""
 
-    def _all_triangles(self) -> np.ndarray:
+    def all_triangles(self) -> np.ndarray:
+        """(N, 3, 3) every triangle: the fixed parts, then planes 1..5 undeflected (body frame, m)."""
         return np.concatenate((self.fixed_vertices,) + tuple(self.plane_vertices))
 
     def volume(self) -> float:
         """Enclosed volume (m^3): sum over all parts, planes undeflected."""
-        return float(trimesh.triangles.mass_properties(self._all_triangles(), skip_inertia=True).volume)
+        return float(trimesh.triangles.mass_properties(self.all_triangles(), skip_inertia=True).volume)
 
     def centroid(self) -> np.ndarray:
         """Centre of buoyancy (centroid of the enclosed volume), body frame, metres."""
         return np.asarray(
-            trimesh.triangles.mass_properties(self._all_triangles(), skip_inertia=True).center_mass, dtype=float)
+            trimesh.triangles.mass_properties(self.all_triangles(), skip_inertia=True).center_mass, dtype=float)
 
     def sail_top_m(self) -> float:
         """Highest point of all surfaces (planes undeflected) above the CG, m: the sail top; the vehicle is
         above the surface (broaching) when its CG z exceeds ``-sail_top_m()`` (mission ``limits.max_cg_z_m``)."""
-        return float(self._all_triangles()[..., 2].max())
+        return float(self.all_triangles()[..., 2].max())
 
     def n_triangles(self) -> int:
         """Total number of triangles (fixed and moving)."""

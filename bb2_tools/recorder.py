@@ -51,7 +51,7 @@ import time
 from pathlib import Path
 from typing import Any, Sequence
 
-from bb2_msgs_py.contract import SIM, ContractError, TopicSpec, message_class, select_topics
+from bb2_msgs_py.contract import SCENE_TOPIC, SIM, ContractError, TopicSpec, message_class, select_topics
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros.node_common import restore_signals, stop_signals, take_all, time_msg
@@ -70,7 +70,6 @@ TF_STATIC_TOPIC = "/tf_static"
 # tf2_ros::StaticBroadcasterQoS: reliable, transient local, keep last 1
 TF_STATIC_QOS = qos_entry(reliability="reliable", durability="transient_local", history="keep_last", depth=1)
 MOUNTINGS_TOPIC = "/bb2/sensors/mountings"
-SCENE_TOPIC = "/bb2/scene/markers"
 DRAIN_TIMEOUT_S = 5.0  # at the stop, take what the readers hold for at most this long (wall s)
 
 

@@ -122,6 +122,15 @@ def main(argv: list[str] | None = None) -> int:
                      f"{out.e_horizontal_m:+.2f} m, vertical {out.e_vertical_m:+.2f} m")
 
     pending = {"samples": [], "ticks": []}   # --state-source sensors: what arrived since the last tick
+
+    def native_state(msg):
+        """The state of a /bb2/state_native message, or None (said, throttled) when it is malformed."""
+        try:
+            return cv.state_native_from_message(msg)
+        except cv.ConversionError as exc:
+            log.warning(f"ignored /bb2/state_native: {exc}", throttle_duration_sec=2.0)
+            return None
+
     if args.state_source == "odometry":
         def on_odom(msg) -> None:
             try:
@@ -132,12 +141,9 @@ def main(argv: list[str] | None = None) -> int:
                                  qos_profile("/bb2/odom", reader=True))
     elif args.state_source == "native":
         def on_native(msg) -> None:
-            try:
-                s = cv.state_native_from_message(msg)
-            except cv.ConversionError as exc:
-                log.warning(f"ignored /bb2/state_native: {exc}", throttle_duration_sec=2.0)
-                return
-            on_state(s, cv.stamp(s.t))
+            s = native_state(msg)
+            if s is not None:
+                on_state(s, cv.stamp(s.t))
         node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native", on_native,
                                  qos_profile("/bb2/state_native", reader=True))
     else:
@@ -159,12 +165,9 @@ def main(argv: list[str] | None = None) -> int:
                                      lambda msg: pending["ticks"].append(msg.clock), qos_profile("/clock", reader=True))
         else:  # the handshake: only the time of the state is read, never the state
             def on_handshake(msg) -> None:
-                try:
-                    t = cv.state_native_from_message(msg).t
-                except cv.ConversionError as exc:
-                    log.warning(f"ignored /bb2/state_native: {exc}", throttle_duration_sec=2.0)
-                    return
-                pending["ticks"].append(cv.stamp(t))
+                s = native_state(msg)
+                if s is not None:
+                    pending["ticks"].append(cv.stamp(s.t))
             node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
                                      on_handshake, qos_profile("/bb2/state_native", reader=True))
 
@@ -179,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
                 return
 
     def on_ticks() -> None:
-        """--state-source sensors: the filter takes the samples, then flies each tick (the latest first)."""
+        """--state-source sensors: the filter takes the samples, then the stack flies the newest tick."""
         drain()
         samples, ticks = sorted(pending["samples"], key=sample_order), pending["ticks"]
         pending["samples"], pending["ticks"] = [], []
