@@ -29,6 +29,8 @@ import pytest
 
 from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
 
+from bb2_msgs_py.contract import QOS
+
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable
 TS = 0.05  # the ROM's step, s
@@ -429,10 +431,19 @@ def check_planner_frozen(cell: Cell) -> None:
     """Nothing happens: the path is latched and already held by path_following."""
     check_completed(cell)
     assert cell.counts["/bb2/path"] == 1 and cell.counts["/bb2/path/bernstein"] == 1
-    assert not _failsafe_statuses(cell), _failsafe_statuses(cell)[:1]
     if cell.mode == "lockstep":  # every step answered at once
+        assert not _failsafe_statuses(cell), _failsafe_statuses(cell)[:1]
         assert cell.statuses[-1]["lockstep_timeouts"] == "0", cell.statuses[-1]
         assert not cell.holes("/bb2/planes/cmd", after_s=cell.fault_at_s - TS), cell.holes("/bb2/planes/cmd")
+        return
+    # real time: the loop goes on through the stop, the plane commands keep coming on the wall clock.  (A
+    # failsafe of the loaded machine's own -- the controllers starved past command_timeout_s, seen in a full suite
+    # with a second cell starting beside it -- is allowed when it is brief: a stopped controller would hold it the
+    # whole 5 s; here no wall gap in the commands comes near that.)
+    w = _published_between(cell, "/bb2/planes/cmd", cell.fault_wall, cell.resume_wall)
+    assert len(w) >= 0.5 * STOP_S * RT_RATE_HZ, (len(w), STOP_S * RT_RATE_HZ)
+    gaps = [b - a for a, b in zip([cell.fault_wall, *w], [*w, cell.resume_wall])]
+    assert max(gaps) < 0.5 * STOP_S, max(gaps)
 
 
 def check_controller_frozen(cell: Cell) -> None:
@@ -452,9 +463,21 @@ def check_controller_frozen(cell: Cell) -> None:
         # (the plane and the propeller commands go stale within a tick of each other: either may be said first)
         assert fs[0]["failsafe_reason"].startswith("no valid"), fs[0]
         assert any("planes neutral" in s["failsafe_reason"] for s in fs), [s["failsafe_reason"] for s in fs]
+        # the hole on the wall clock: nothing from the node for the whole stop
+        w = cell.walls[out]
+        assert max(b - a for a, b in zip(w, w[1:])) >= STOP_S - 0.5, out
+        # the hole in sim time: on SIGCONT the node is repaired the states it missed that the simulator's writer
+        # still keeps (its history depth, 100) and answers them late, so the hole is what the simulator stepped
+        # during the stop less those (15 s at 60 Hz on an idle machine, less when the real-time loop itself was
+        # starved: seen beside two CPU hogs, a full stop's hole under 2 s)
+        stepped = len(set(_published_between(cell, "/bb2/state_native", cell.fault_wall, cell.resume_wall)))
+        depth = QOS["command"].depth
         holes = cell.holes(out, after_s=cell.fault_at_s - TS)
-        assert holes and max(b - a for a, b in holes) >= 2.0, holes
-        assert max(cell.stamps[out]) >= max(b for _, b in holes)   # it answers again after its hole
+        if stepped > depth + 20:
+            assert holes and max(b - a for a, b in holes) >= (stepped - depth - 20) * TS, (holes, stepped)
+        if holes:
+            assert max(cell.stamps[out]) >= max(b for _, b in holes)   # it answers again after its hole
+        assert max(cell.stamps[out]) > cell.fault_at_s + stepped * TS - TS   # and after the stop
 
 
 def check_frozen_said(cell: Cell) -> None:
