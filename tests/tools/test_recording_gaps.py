@@ -121,7 +121,7 @@ def test_lockstep_canyon_with_the_recorder_stopped_5_s_records_every_step_of_eve
 
 def test_realtime_recorder_stopped_5_s_the_gap_is_in_the_metadata_the_launcher_and_bb2_analyze(tmp_path):
     """Real time cannot wait: a recorder stopped for 5 s loses what was published meanwhile beyond the writers'
-    histories.  The gap on /bb2/state_native is found from the publication sequence numbers, written into the bag's
+    histories.  The gap (on /bb2/state_native, or the command topics) is found from the publication sequence numbers, written into the bag's
     metadata (custom_data bb2_gaps), printed by bb2-launch and warned about by bb2-analyze, which says the figures
     are affected."""
     pytest.importorskip("rclpy")
@@ -132,23 +132,28 @@ def test_realtime_recorder_stopped_5_s_the_gap_is_in_the_metadata_the_launcher_a
     out = tmp_path / "rt"
     code, err = _run_stopping_the_recorder(mission, out, "--mode", "realtime", "--params", str(params))
     assert code == 0, err[-4000:]
-    gaps = [g for g in _gaps(out) if g["topic"] == "/bb2/state_native" and g["after_sequence"] > 0]
-    assert gaps, _gaps(out)
+    # the topic that lost most (/bb2/state_native when idle; beside two CPU hogs it once lost nothing -- the
+    # recorder's transport buffers held its 400 states -- while each command topic lost 401)
+    per_step = [g for g in _gaps(out) if g["topic"] in STATE_TOPICS and g["after_sequence"] > 0]
+    assert per_step, _gaps(out)
+    topic = max(per_step, key=lambda g: (g["missing"], g["topic"] == "/bb2/state_native"))["topic"]
+    gaps = [g for g in per_step if g["topic"] == topic]
     lost = sum(g["missing"] for g in gaps)
     assert lost >= 100, gaps   # 5 s at 100 Hz, less the writer's history of 100 and what the buffers held
-    # the bag holds exactly the states the gap does not cover: count + lost = the numbers the publisher used
+    # the bag holds exactly the messages the gap does not cover: count + lost = the numbers the publisher used
     from bb2_tools.bagfile import BagReader
 
-    seqs = sorted(m.sequence for m in BagReader(out).raw_messages("/bb2/state_native"))
-    assert len(seqs) + sum(g["missing"] for g in _gaps(out) if g["topic"] == "/bb2/state_native") \
-        == seqs[-1], (len(seqs), seqs[-1])
+    seqs = sorted(m.sequence for m in BagReader(out).raw_messages(topic))
+    assert len(seqs) + sum(g["missing"] for g in _gaps(out) if g["topic"] == topic) == seqs[-1], \
+        (topic, len(seqs), seqs[-1])
     summary = err.split("RECORDING GAPS", 1)[-1]
-    assert re.search(r"/bb2/state_native: \d+ lost, \d+ gap\(s\) during the run", summary), err[-3000:]
+    assert re.search(rf"{re.escape(topic)}: \d+ lost, \d+ gap\(s\) during the run", summary), err[-3000:]
     a = subprocess.run([PY, "-m", "bb2_tools.analyze", str(out), "--no-report"], capture_output=True, text=True,
                        env=ros_env(), timeout=300, cwd=tmp_path)
     assert a.returncode == 0, a.stderr[-2000:]
-    warn = [ln for ln in a.stdout.splitlines() if "recording gap(s) on /bb2/state_native" in ln]
-    assert len(warn) == 1 and "the figures are affected" in warn[0], a.stdout[-3000:]
+    warn = [ln for ln in a.stdout.splitlines() if f"recording gap(s) on {topic}" in ln]
+    said = "the figures are affected" if topic == "/bb2/state_native" else f"figures from {topic} are affected"
+    assert len(warn) == 1 and said in warn[0], a.stdout[-3000:]
     g = gaps[0]
     assert f"{g['missing']} between t = {g['after_log_s']:.3f} s" in warn[0], (warn, g)
 
