@@ -38,9 +38,9 @@ class ContractError(ValueError):
 
 
 # ----------------------------------------------------------------------------------------- frames
-FRAME_MAP = "map"
 SCENE_TOPIC = "/bb2/scene/markers"
 SEA_SURFACE_TOPIC = "/bb2/scene/sea_surface"
+FRAME_MAP = "map"
 """World frame, ENU, origin at the native earth origin (calm surface, z = 0)."""
 FRAME_ODOM = "odom"
 """Odometry frame, ENU; identical to ``map`` (ground truth, no drift)."""
@@ -64,6 +64,25 @@ FRAMES: dict[str, str] = {
     FRAME_PATH: "path (Serret-Frenet-like) frame: x along track, y left, z up",
     FRAME_NATIVE: "ROM native frames: earth z up (bow along -x at psi = 0), body x aft / y stbd / z up",
 }
+
+WORLD_FRAMES = frozenset({FRAME_MAP, FRAME_MAP_NED, FRAME_NATIVE})
+"""The frames every vehicle of a graph shares (never prefixed); the others (odom, base_link, base_link_frd,
+path_frenet, the sensors' frames) are the vehicle's own."""
+
+
+def frame_prefix(namespace: str) -> str:
+    """The prefix of the frame ids of a vehicle whose nodes run in ``namespace``: ``""`` in the root namespace (the
+    single-vehicle frames unchanged), ``"boat1/"`` in ``/boat1`` (``boat1/base_link``, ``boat1/odom`` under ``map``:
+    REP-105's multi-robot convention; tf2 frame ids carry no leading slash)."""
+    ns = namespace.strip("/")
+    return f"{ns}/" if ns else ""
+
+
+def vehicle_frame(frame: str, prefix: str = "") -> str:
+    """``frame`` of the vehicle whose frame ids carry ``prefix`` (:func:`frame_prefix`); a world frame
+    (:data:`WORLD_FRAMES`) is returned as it is."""
+    return frame if not prefix or frame in WORLD_FRAMES else prefix + frame
+
 
 STATE_NATIVE_LABEL = "t_x_y_z_phi_theta_psi_u_v_w_p_q_r"
 """``layout.dim[0].label`` of ``/bb2/state_native``: data = [t (s), x12 native (m, rad, m/s, rad/s)]."""

@@ -186,10 +186,11 @@ def state_to_odometry(state: VehicleState, *, frame_id: str = FRAME_ODOM,
     )
 
 
-def odometry_to_state(msg) -> VehicleState:
-    """Inverse of :func:`state_to_odometry` (time from the header stamp)."""
-    if msg.child_frame_id not in (FRAME_BASE_LINK, ""):
-        raise ConversionError(f"odometry twist must be in {FRAME_BASE_LINK!r}, got {msg.child_frame_id!r}")
+def odometry_to_state(msg, *, child_frame_id: str = FRAME_BASE_LINK) -> VehicleState:
+    """Inverse of :func:`state_to_odometry` (time from the header stamp); the twist must be in ``child_frame_id``
+    (the vehicle's base_link: ``boat1/base_link`` for a boat in ``/boat1``) or unnamed."""
+    if msg.child_frame_id not in (child_frame_id, ""):
+        raise ConversionError(f"odometry twist must be in {child_frame_id!r}, got {msg.child_frame_id!r}")
     pp, qq = msg.pose.pose.position, msg.pose.pose.orientation
     lv, av = msg.twist.twist.linear, msg.twist.twist.angular
     return enu_arrays_to_state(stamp_to_seconds(msg.header.stamp), [pp.x, pp.y, pp.z],
@@ -368,8 +369,9 @@ def vh_from_message(msg) -> tuple[float, float]:
 
 
 # ----------------------------------------------------------------------------------------- guidance
-def rate_command_message(t: float, q_c_native: float, r_c_native: float):
-    """``geometry_msgs/Vector3Stamped`` of the rate commands as a FLU body rate (base_link).
+def rate_command_message(t: float, q_c_native: float, r_c_native: float, *, frame_id: str = FRAME_BASE_LINK):
+    """``geometry_msgs/Vector3Stamped`` of the rate commands as a FLU body rate (``frame_id``: the vehicle's
+    base_link).
 
     The native (ROM) commands q_c (bow up > 0) and r_c (bow to port > 0) map to FLU as
     ``(x, y, z) = (0, -q_c, r_c)``.
@@ -377,23 +379,24 @@ def rate_command_message(t: float, q_c_native: float, r_c_native: float):
     from geometry_msgs.msg import Vector3, Vector3Stamped
 
     w = frames.body_native_to_flu(np.array([0.0, float(q_c_native), float(r_c_native)]))
-    return Vector3Stamped(header=_header(t, FRAME_BASE_LINK), vector=Vector3(x=w[0], y=w[1], z=w[2]))
+    return Vector3Stamped(header=_header(t, frame_id), vector=Vector3(x=w[0], y=w[1], z=w[2]))
 
 
-def rate_command_from_message(msg) -> tuple[float, float]:
-    """(q_c, r_c) native from a rate command; rejects a frame other than base_link."""
-    if msg.header.frame_id != FRAME_BASE_LINK:
-        raise ConversionError(f"rate command must be in {FRAME_BASE_LINK!r}, got {msg.header.frame_id!r}")
+def rate_command_from_message(msg, *, frame_id: str = FRAME_BASE_LINK) -> tuple[float, float]:
+    """(q_c, r_c) native from a rate command; rejects a frame other than ``frame_id`` (the vehicle's base_link)."""
+    if msg.header.frame_id != frame_id:
+        raise ConversionError(f"rate command must be in {frame_id!r}, got {msg.header.frame_id!r}")
     w = frames.body_flu_to_native(np.array([msg.vector.x, msg.vector.y, msg.vector.z]))
     return float(w[1]), float(w[2])
 
 
-def path_error_message(t: float, e_path):
-    """``geometry_msgs/Vector3Stamped`` of the path error (m) in the path frame (x along, y left, z up)."""
+def path_error_message(t: float, e_path, *, frame_id: str = FRAME_PATH):
+    """``geometry_msgs/Vector3Stamped`` of the path error (m) in the path frame ``frame_id`` (x along, y left, z up;
+    the vehicle's own: ``boat1/path_frenet`` for a boat in ``/boat1``)."""
     from geometry_msgs.msg import Vector3, Vector3Stamped
 
     e = _vec3(e_path)
-    return Vector3Stamped(header=_header(t, FRAME_PATH), vector=Vector3(x=e[0], y=e[1], z=e[2]))
+    return Vector3Stamped(header=_header(t, frame_id), vector=Vector3(x=e[0], y=e[1], z=e[2]))
 
 
 def path_error_from_message(msg) -> np.ndarray:

@@ -102,8 +102,9 @@ def marker_triangles(marker) -> np.ndarray:
     return np.array([[p.x, p.y, p.z] for p in marker.points], dtype=float).reshape(-1, 3, 3)
 
 
-def hull_marker(surfaces: Any, t: float = 0.0):
-    return triangle_marker(hull_triangles_flu(surfaces), ns=HULL_NS, frame_id=FRAME_BASE_LINK, t=t,
+def hull_marker(surfaces: Any, t: float = 0.0, *, frame_id: str = FRAME_BASE_LINK):
+    """The hull in the vehicle's base_link ``frame_id`` (``boat1/base_link`` for a boat in ``/boat1``)."""
+    return triangle_marker(hull_triangles_flu(surfaces), ns=HULL_NS, frame_id=frame_id, t=t,
                            rgba=(0.55, 0.57, 0.6, 1.0))
 
 

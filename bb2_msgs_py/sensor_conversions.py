@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from .contract import FRAME_BASE_LINK
 from .conversions import _header
 
 __all__ = ["DVL_TOPIC", "DVL_WATER_TOPIC", "DVL_RANGES_TOPIC", "SENSOR_TOPICS", "MOUNTINGS_FORMAT",
@@ -145,8 +146,17 @@ def gps_from_message(msg) -> dict[str, Any]:
             "cov": np.array(msg.position_covariance).reshape(3, 3)}
 
 
-def sample_messages(s, suite_config=None) -> list[tuple[str, Any]]:
-    """(topic, message) pairs of one sample (a DVL ping gives its velocity and one range per beam)."""
+def sample_messages(s, suite_config=None, *, frame_prefix: str = "") -> list[tuple[str, Any]]:
+    """(topic, message) pairs of one sample (a DVL ping gives its velocity and one range per beam); the frame ids
+    carry the vehicle's ``frame_prefix`` (:func:`bb2_msgs_py.contract.frame_prefix`: ``boat1/imu_link``)."""
+    out = _sample_messages(s, suite_config)
+    if frame_prefix:
+        for _topic, msg in out:
+            msg.header.frame_id = frame_prefix + msg.header.frame_id
+    return out
+
+
+def _sample_messages(s, suite_config) -> list[tuple[str, Any]]:
     kind = s.sensor
     if kind == "imu":
         return [("/bb2/sensors/imu", imu_sample_message(s))]
@@ -171,13 +181,17 @@ def _quat_of_rpy(r: float, p: float, y: float) -> list[float]:
             cr * cp * cy + sr * sp * sy]
 
 
-def mountings_description(suite_config, seed: int = 0, parent: str = "base_link") -> dict[str, Any]:
+def mountings_description(suite_config, seed: int = 0, parent: str = FRAME_BASE_LINK, *,
+                          frame_prefix: str = "") -> dict[str, Any]:
     """The static transforms ``parent -> sensor frame`` (and ``dvl frame -> each beam``) and the rates, as the
-    JSON latched on ``/bb2/sensors/mountings`` (format ``bb2_sensor_mountings/1``)."""
+    JSON latched on ``/bb2/sensors/mountings`` (format ``bb2_sensor_mountings/1``); every frame id carries the
+    vehicle's ``frame_prefix`` (``boat1/base_link -> boat1/imu_link``)."""
     tfs, rates = [], {}
+    parent = frame_prefix + parent
     for name, c in suite_config.sensors().items():
         m = c.mounting
-        tfs.append({"parent": parent, "child": c.frame_id, "translation_m": [float(v) for v in m.position_flu],
+        child = frame_prefix + c.frame_id
+        tfs.append({"parent": parent, "child": child, "translation_m": [float(v) for v in m.position_flu],
                     "rotation_xyzw": _quat_of_rpy(*[float(a) for a in m.rpy_rad])})
         rates[name] = float(c.rate_hz)
         if name == "dvl":
@@ -185,14 +199,14 @@ def mountings_description(suite_config, seed: int = 0, parent: str = "base_link"
                 # beam frame: x along the beam (Range convention); yaw = azimuth, pitch down to the beam
                 yaw = math.atan2(b[1], b[0])
                 pitch = math.atan2(-b[2], math.hypot(b[0], b[1]))
-                tfs.append({"parent": c.frame_id, "child": dvl_beam_frame(c.frame_id, i),
+                tfs.append({"parent": child, "child": dvl_beam_frame(child, i),
                             "translation_m": [0.0, 0.0, 0.0], "rotation_xyzw": _quat_of_rpy(0.0, pitch, yaw)})
     return {"format": MOUNTINGS_FORMAT, "suite": suite_config.name, "seed": int(seed), "source": suite_config.source,
             "transforms": tfs, "rates_hz": rates}
 
 
-def mountings_json(suite_config, seed: int = 0) -> str:
-    return json.dumps(mountings_description(suite_config, seed), allow_nan=False)
+def mountings_json(suite_config, seed: int = 0, *, frame_prefix: str = "") -> str:
+    return json.dumps(mountings_description(suite_config, seed, frame_prefix=frame_prefix), allow_nan=False)
 
 
 # ---------------------------------------------------------------------------------------- messages -> samples
@@ -205,7 +219,7 @@ def _cov(values, n: int, where: str) -> np.ndarray:
     return c.reshape(n, n)
 
 
-def sample_from_message(topic: str, msg, suite_config=None):
+def sample_from_message(topic: str, msg, suite_config=None, *, frame_prefix: str = ""):
     """The sensor sample (:mod:`bb2_sim.sensors.samples`) a ``/bb2/sensors/*`` message carries: the inverse of
     :func:`sample_messages`, for an autopilot that reads the sensor topics (the navigation filter takes these).
 
@@ -213,7 +227,7 @@ def sample_from_message(topic: str, msg, suite_config=None):
     sample has one (the DVL; none without ``suite_config``).  A DVL message gives no beam ranges (those come on
     ``/bb2/sensors/dvl/ranges``).  A GPS fix is turned back to ``map`` (ENU) about the suite's origin, so a GPS
     message needs ``suite_config``.  Raises ``ConversionError`` for a topic that carries no sample of these kinds or
-    a frame other than the suite's."""
+    a frame other than the suite's (with the vehicle's ``frame_prefix``, which the sample's frame drops)."""
     from bb2_sim.sensors.geodesy import geodetic_to_enu
     from bb2_sim.sensors.samples import DvlSample, GpsSample, ImuSample, PressureSample
 
@@ -226,12 +240,16 @@ def sample_from_message(topic: str, msg, suite_config=None):
         raise ConversionError(f"no sensor sample is carried on {topic!r} (the sample topics: {sorted(kinds)})")
     t = stamp_to_seconds(msg.header.stamp)
     frame = msg.header.frame_id
+    if frame_prefix and not frame.startswith(frame_prefix):
+        raise ConversionError(f"{topic}: frame_id {frame!r} is not of this vehicle (frames {frame_prefix}*)")
+    frame = frame.removeprefix(frame_prefix)
     cfg = suite_config.sensors().get(kind) if suite_config is not None else None
     if suite_config is not None:
         if cfg is None:
             raise ConversionError(f"{topic}: the suite {suite_config.name!r} has no {kind}")
         if frame != cfg.frame_id:
-            raise ConversionError(f"{topic}: frame_id {frame!r}, the suite's {kind} is mounted as {cfg.frame_id!r}")
+            raise ConversionError(f"{topic}: frame_id {msg.header.frame_id!r}, the suite's {kind} is mounted as "
+                                  f"{frame_prefix + cfg.frame_id!r}")
     if kind == "imu":
         o, w, f = msg.orientation, msg.angular_velocity, msg.linear_acceleration
         return ImuSample("imu", t, t, frame, np.array([w.x, w.y, w.z]), np.array([f.x, f.y, f.z]),

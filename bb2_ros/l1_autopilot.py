@@ -24,12 +24,12 @@ from rclpy.node import Node
 from bb2_control.errors import NonFiniteInputError
 from bb2_control.path_following import flow_to_body_rates
 from bb2_msgs_py import conversions as cv
-from bb2_msgs_py.contract import message_class, qos_profile
+from bb2_msgs_py.contract import FRAME_BASE_LINK, message_class, qos_profile
 
 from bb2_mission.components import build_mission_stack
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
-                                 mission_only, node_options, require_choice, require_positive, require_rate_stack,
-                                 run_node, state_topic, subscribe_state, time_msg)
+                                 mission_only, node_frame, node_options, require_choice, require_positive,
+                                 require_rate_stack, run_node, state_topic, subscribe_state, time_msg)
 
 TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd",
           "/bb2/propeller/cmd", "/bb2/status", "/bb2/nav/state_native")
@@ -40,6 +40,7 @@ class L1Autopilot(Node):
     def __init__(self, argv: Sequence[str]):
         super().__init__("l1_autopilot", **node_options())
         node = self
+        self.base_link = node_frame(node, FRAME_BASE_LINK)  # boat1/base_link in /boat1
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         source = require_choice("state_source", declare(
             node, "state_source", "native", "native (/bb2/state_native, exact) | odometry (/bb2/odom)"),
@@ -66,7 +67,7 @@ class L1Autopilot(Node):
 
     def _on_rate(self, msg) -> None:
         try:
-            q_c, r_c = cv.rate_command_from_message(msg)
+            q_c, r_c = cv.rate_command_from_message(msg, frame_id=self.base_link)
         except cv.ConversionError as exc:
             self.counts["rejected"] += 1
             self.get_logger().warning(f"rejected rate command: {exc}", throttle_duration_sec=2.0)
@@ -111,8 +112,8 @@ class L1Autopilot(Node):
             self.get_logger().error(f"autopilot failed at t = {state.t:.3f} s: {exc}", throttle_duration_sec=2.0)
             return
         st = time_msg(ns)
-        vh = cv.vh_message(0.0, math.radians(dV_deg), math.radians(dH_deg))
-        prop = cv.propeller_message(0.0, rps * 2.0 * math.pi)
+        vh = cv.vh_message(0.0, math.radians(dV_deg), math.radians(dH_deg), frame_id=self.base_link)
+        prop = cv.propeller_message(0.0, rps * 2.0 * math.pi, frame_id=self.base_link)
         vh.header.stamp = prop.header.stamp = st
         self.cache.store(ns, [(self.pub["/bb2/autopilot/vh_cmd"], vh), (self.pub["/bb2/propeller/cmd"], prop)])
         self.counts["answered"] += 1

@@ -17,11 +17,11 @@ from rclpy.node import Node
 
 from bb2_control.errors import NonFiniteInputError
 from bb2_msgs_py import conversions as cv
-from bb2_msgs_py.contract import message_class, qos_profile
+from bb2_msgs_py.contract import FRAME_BASE_LINK, message_class, qos_profile
 
 from bb2_mission.components import build_mixer
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
-                                 mission_only, node_options, require_positive, run_node)
+                                 mission_only, node_frame, node_options, require_positive, run_node)
 
 TOPICS = ("/bb2/autopilot/vh_cmd", "/bb2/planes/cmd", "/bb2/status")
 
@@ -30,6 +30,7 @@ class Mixer(Node):
     def __init__(self, argv: Sequence[str]):
         super().__init__("mixer", **node_options())
         node = self
+        self.base_link = node_frame(node, FRAME_BASE_LINK)  # boat1/base_link in /boat1
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         period = require_positive("status_period_s", declare(node, "status_period_s", 1.0,
                                                              "wall period of this node's /bb2/status"))
@@ -57,7 +58,7 @@ class Mixer(Node):
             self.counts["rejected"] += 1
             self.get_logger().warning(f"rejected vh command: {exc}", throttle_duration_sec=2.0)
             return
-        out = cv.planes_message(0.0, [math.radians(float(d)) for d in planes_deg])
+        out = cv.planes_message(0.0, [math.radians(float(d)) for d in planes_deg], frame_id=self.base_link)
         out.header.stamp = msg.header.stamp
         self.cache.store(ns, [(self.pub, out)])
         self.counts["answered"] += 1

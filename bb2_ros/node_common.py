@@ -659,6 +659,14 @@ def state_topic(mission) -> str:
     return NAV_STATE_TOPIC if getattr(mission, "navigation", "truth") == "sensors" else "/bb2/state_native"
 
 
+def node_frame(node, frame: str) -> str:
+    """``frame`` of the vehicle whose nodes run in ``node``'s namespace (``base_link`` in the root namespace,
+    ``boat1/base_link`` in ``/boat1``; the world frames as they are): :func:`bb2_msgs_py.contract.vehicle_frame`."""
+    from bb2_msgs_py.contract import frame_prefix, vehicle_frame
+
+    return vehicle_frame(frame, frame_prefix(node.get_namespace()))
+
+
 def subscribe_state(node, source: str, callback: Callable[[Any, int], None], native_topic: str = "/bb2/state_native"):
     """Subscribe to the vehicle state: ``native`` = ``native_topic`` (``/bb2/state_native``: exact, reliable; the
     lockstep trigger; or the navigation estimate, :func:`state_topic`) or ``odometry`` = ``/bb2/odom``
@@ -682,9 +690,13 @@ def subscribe_state(node, source: str, callback: Callable[[Any, int], None], nat
         return node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), native_topic,
                                         on_native, qos_profile(native_topic, reader=True))
 
+    from bb2_msgs_py.contract import FRAME_BASE_LINK
+
+    base_link = node_frame(node, FRAME_BASE_LINK)
+
     def on_odom(msg):
         try:
-            s = cv.odometry_to_state(msg)
+            s = cv.odometry_to_state(msg, child_frame_id=base_link)
         except cv.ConversionError as exc:
             node.get_logger().warning(f"ignored /bb2/odom: {exc}", throttle_duration_sec=2.0)
             return

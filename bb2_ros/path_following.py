@@ -33,12 +33,12 @@ from rclpy.node import Node
 
 from bb2_control.errors import NonFiniteInputError, PathFollowingError
 from bb2_msgs_py import conversions as cv
-from bb2_msgs_py.contract import message_class, qos_profile
+from bb2_msgs_py.contract import FRAME_BASE_LINK, FRAME_PATH, message_class, qos_profile
 
 from bb2_mission.components import build_mission_stack
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
-                                 mission_only, node_options, require_choice, require_positive, require_rate_stack,
-                                 run_node, state_topic, subscribe_state, time_msg)
+                                 mission_only, node_frame, node_options, require_choice, require_positive,
+                                 require_rate_stack, run_node, state_topic, subscribe_state, time_msg)
 
 PROGRESS_SAMPLES = 2001  # arc-length table for the progress (linear interpolation: < 1e-4 m on the shipped paths)
 TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/path/bernstein", "/bb2/guidance/rate_cmd",
@@ -53,6 +53,8 @@ class PathFollowing(Node):
     def __init__(self, argv: Sequence[str]):
         super().__init__("path_following", **node_options())
         node = self
+        self.base_link = node_frame(node, FRAME_BASE_LINK)  # boat1/base_link in /boat1
+        self.path_frame = node_frame(node, FRAME_PATH)
         mission_file = declare(node, "mission_file", "", "mission YAML (same file as `bb2-sim mission`)")
         source = require_choice("state_source", declare(
             node, "state_source", "native", "native (/bb2/state_native, exact) | odometry (/bb2/odom)"),
@@ -143,7 +145,7 @@ class PathFollowing(Node):
                                          throttle_duration_sec=2.0)
             return
         st = time_msg(stamp_ns)
-        rate = cv.rate_command_message(state.t, pf.q_c, pf.r_c)
+        rate = cv.rate_command_message(state.t, pf.q_c, pf.r_c, frame_id=self.base_link)
         rate.header.stamp = st
         path = stack.path
         progress = Float64(data=float(np.interp(min(pf.gamma, path.tf), self._s_t, self._s)) / self.length_m)
@@ -156,7 +158,7 @@ class PathFollowing(Node):
             self.pub["/bb2/mission/progress"].publish(progress)
             first = [(self.pub["/bb2/mission/progress"], progress)]
         self.pub["/bb2/guidance/rate_cmd"].publish(rate)  # first (else): the autopilot waits for it
-        err = cv.path_error_message(state.t, pf.p_T)
+        err = cv.path_error_message(state.t, pf.p_T, frame_id=self.path_frame)
         err.header.stamp = st
         rest = [(self.pub["/bb2/guidance/path_error"], err)] + ([] if first else
                                                                 [(self.pub["/bb2/mission/progress"], progress)])

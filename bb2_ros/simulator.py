@@ -60,6 +60,10 @@ other one is read-only (fixed at start-up; the set is refused):
 
 ``/bb2/sea`` (latched, once at start) carries the sea and current as JSON, so a bag holds its sea.
 
+Frames: ``odom`` and ``base_link`` (and the sensors' frames) in the root namespace; in a namespace they carry its
+name (``/boat1``: ``boat1/odom``, ``boat1/base_link``, ``boat1/imu_link``: :func:`bb2_msgs_py.contract.frame_prefix`),
+so the boats of a fleet share ``map`` and keep their own trees.
+
 Sensors (a suite from the mission or ``sensor_suite``): once the step from ``t_n`` is integrated, every sensor
 sample whose time falls in ``[t_n, t_n+1)`` (each sensor at its own rate, from the truth interpolated between the
 two states: :class:`bb2_sim.sensors.SensorSuite`) and is out of the sensor (latency) goes out on
@@ -86,9 +90,9 @@ message the handshake needs can be dropped and the run is deterministic.
 
 Command validation, the handshake, the watchdog and the failsafe are the ROS-free lockstep gate
 (:mod:`bb2_mission.lockstep_gate`): non-finite values, wrong joint names/sizes, a frame other than
-``base_link``, stale or future stamps are rejected (never integrated); plane commands beyond the ROM's plane
-limit and propeller commands outside its rps limits are clamped; each with a throttled warning and a counter in
-the status.  This node turns messages into the gate's inputs and its decisions into steps and messages.
+the vehicle's ``base_link``, stale or future stamps are rejected (never integrated); plane commands beyond the
+ROM's plane limit and propeller commands outside its rps limits are clamped; each with a throttled warning and a
+counter in the status.  This node turns messages into the gate's inputs and its decisions into steps and messages.
 """
 from __future__ import annotations
 
@@ -114,7 +118,8 @@ from bb2_msgs_py import conversions as cv
 from bb2_msgs_py import scene_markers
 from bb2_msgs_py.contract import SCENE_TOPIC, SEA_SURFACE_TOPIC
 from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS, mountings_json, sample_messages
-from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT, message_class, qos_profile
+from bb2_msgs_py.contract import (FRAME_BASE_LINK, FRAME_ODOM, PLANE_JOINTS, PROPELLER_JOINT, frame_prefix,
+                                  message_class, qos_profile, vehicle_frame)
 from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.state import VehicleState
 
@@ -138,6 +143,10 @@ class Simulator(Node):
 
     def __init__(self, argv: Sequence[str]):
         super().__init__("simulator", **node_options())
+        # the vehicle's frame ids: base_link, odom in the root namespace; boat1/base_link, boat1/odom in /boat1
+        self.frame_prefix = frame_prefix(self.get_namespace())
+        self.base_link = vehicle_frame(FRAME_BASE_LINK, self.frame_prefix)
+        self.odom_frame = vehicle_frame(FRAME_ODOM, self.frame_prefix)
         node = self
         self._lock = threading.RLock()  # real time: the stepping thread vs the executor's callbacks
         self.scheduling = "normal"  # of the real-time stepping thread (status)
@@ -244,7 +253,7 @@ class Simulator(Node):
             duration = float(self.mission.duration)
         self.duration_s = duration
         limits = CommandLimits.from_actuators(self.sim.model.params.act, plane_joints=PLANE_JOINTS,
-                                              propeller_joint=PROPELLER_JOINT, frame_id=FRAME_BASE_LINK)
+                                              propeller_joint=PROPELLER_JOINT, frame_id=self.base_link)
         self.gate = LockstepGate(
             CommandValidator(limits, mode=self.time_mode, max_command_age_s=self.max_command_age_s, step_s=self.h),
             GateTimings(lockstep_timeout_s=self.lockstep_timeout_s, lockstep_retry_s=self.lockstep_retry_s,
@@ -304,8 +313,8 @@ class Simulator(Node):
             self.pub[SCENE_TOPIC] = pub(SCENE_TOPIC)
             self._publish_scene()
         if self.suite is not None:
-            self.pub["/bb2/sensors/mountings"].publish(String(data=mountings_json(self.suite.config,
-                                                                                 self.sensor_spec.seed)))
+            self.pub["/bb2/sensors/mountings"].publish(String(data=mountings_json(
+                self.suite.config, self.sensor_spec.seed, frame_prefix=self.frame_prefix)))
 
         self.finished = False
         self.diverged = ""
@@ -575,9 +584,11 @@ class Simulator(Node):
             self._publish_trigger(clock=False)  # first: the controllers work on step n+1 while the sensors go out
         t = rec.t
         f_flu = cv.specific_force_flu(state, rec.ev.xdot[6:9], self.g)
-        self.pub["/bb2/imu"].publish(cv.imu_message(state, f_flu))
-        self.pub["/bb2/planes/state"].publish(cv.planes_message(t, np.radians(rec.act.planes_deg)))
-        self.pub["/bb2/propeller/state"].publish(cv.propeller_message(t, rec.act.rps * TWO_PI))
+        self.pub["/bb2/imu"].publish(cv.imu_message(state, f_flu, frame_id=self.base_link))
+        self.pub["/bb2/planes/state"].publish(cv.planes_message(t, np.radians(rec.act.planes_deg),
+                                                                frame_id=self.base_link))
+        self.pub["/bb2/propeller/state"].publish(cv.propeller_message(t, rec.act.rps * TWO_PI,
+                                                                      frame_id=self.base_link))
         if self.suite is not None and self.nav is None:
             self._publish_measurements(state, rec)
         if finished:
@@ -597,7 +608,7 @@ class Simulator(Node):
         if self.nav is not None:
             self.nav.update(samples)
         for s in samples:
-            for name, msg in sample_messages(s, self.suite.config):
+            for name, msg in sample_messages(s, self.suite.config, frame_prefix=self.frame_prefix):
                 self.pub[name].publish(msg)
 
     def _publish_state(self) -> None:
@@ -622,7 +633,7 @@ class Simulator(Node):
     def _publish_scene(self) -> None:
         """The latched scene: the hull (base_link), the terrain and, in a calm sea, the plane z = 0 (map)."""
         sm = scene_markers
-        markers = [sm.hull_marker(self.sim.model.surfaces, self.sim.t)]
+        markers = [sm.hull_marker(self.sim.model.surfaces, self.sim.t, frame_id=self.base_link)]
         if self.terrain is not None:
             markers.append(sm.terrain_marker(self.terrain, self.sim.t))
         if self.sea is None:
@@ -642,15 +653,15 @@ class Simulator(Node):
         self._publish_sea_surface()
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
         t = state.t
-        self._odom_msg = cv.state_to_odometry(state)
+        self._odom_msg = cv.state_to_odometry(state, frame_id=self.odom_frame, child_frame_id=self.base_link)
         self.pub["/bb2/odom"].publish(self._odom_msg)
-        self.pub["/bb2/depth"].publish(cv.depth_message(t, state.depth_m))
+        self.pub["/bb2/depth"].publish(cv.depth_message(t, state.depth_m, frame_id=self.base_link))
         if self.terrain is not None:
             try:
                 alt = float(self.terrain.clearance(state.p_native))
             except ValueError:  # off the terrain grid: no bottom known
                 alt = math.inf
-            self.pub["/bb2/altitude"].publish(cv.altitude_message(t, alt))
+            self.pub["/bb2/altitude"].publish(cv.altitude_message(t, alt, frame_id=self.base_link))
 
     # ------------------------------------------------------------------------------------ status
     def status_values(self) -> dict[str, str]:

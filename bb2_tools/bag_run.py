@@ -26,6 +26,8 @@ from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
 
+from bb2_msgs_py.contract import FRAME_BASE_LINK
+
 from bb2_tools.bagfile import BagError, BagReader, Gap, bag_gaps, gaps_by_topic
 
 __all__ = ["AnalysisError", "Series", "StatusEntry", "BagRun", "read_bag", "USED_TOPICS"]
@@ -210,6 +212,7 @@ def read_bag(path: str | Path, label: str | None = None) -> BagRun:
     bernstein = None
     path_samples = None
     status: list[StatusEntry] = []
+    base_link = reader.vehicle_frame_prefix() + FRAME_BASE_LINK  # boat1/base_link in a fleet boat's bag
     for m in reader.raw_messages(wanted):
         try:
             msg = decode(m.type, m.data)
@@ -222,7 +225,7 @@ def read_bag(path: str | Path, label: str | None = None) -> BagRun:
                 s = cv.state_native_from_message(msg)
                 rows[T_NAV].append((cv.seconds_to_ns(s.t), list(s.as_vector())))
             elif m.topic == T_ODOM:
-                s = cv.odometry_to_state(msg)
+                s = cv.odometry_to_state(msg, child_frame_id=base_link)
                 ns = _stamp_ns(msg)
                 rows[T_ODOM].append((ns, [s.t, *s.as_vector()]))
                 state_pub.setdefault(ns, m.publish_time_ns)
@@ -233,7 +236,7 @@ def read_bag(path: str | Path, label: str | None = None) -> BagRun:
             elif m.topic == T_PATH_ERROR:
                 rows[m.topic].append((_stamp_ns(msg), cv.path_error_from_message(msg)))
             elif m.topic == T_RATE:
-                rows[m.topic].append((_stamp_ns(msg), cv.rate_command_from_message(msg)))
+                rows[m.topic].append((_stamp_ns(msg), cv.rate_command_from_message(msg, frame_id=base_link)))
             elif m.topic == T_VH:
                 rows[m.topic].append((_stamp_ns(msg), cv.vh_from_message(msg)))
             elif m.topic in (T_PLANES_CMD, T_PLANES):

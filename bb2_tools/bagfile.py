@@ -579,6 +579,21 @@ class BagReader:
                                  c.message_encoding, c.metadata.get(SEQUENCE_KEY) == SEQUENCE_DDS))
         return out
 
+    def vehicle_frame_prefix(self) -> str:
+        """The prefix of the recorded vehicle's frame ids (``""``; ``"boat1/"`` for a boat of a fleet): from the
+        first ``/bb2/odom`` (its child frame) or ``/bb2/planes/state`` (its frame), ``""`` without either.  Its
+        commands and odometry are read against ``<prefix>base_link``."""
+        from bb2_msgs_py.contract import FRAME_BASE_LINK
+
+        for topic in ("/bb2/odom", "/bb2/planes/state"):
+            if self.message_counts.get(topic, 0):
+                for _t, _log, msg in self.messages(topic):
+                    frame = msg.child_frame_id if topic == "/bb2/odom" else msg.header.frame_id
+                    if frame.endswith(FRAME_BASE_LINK):
+                        return frame.removesuffix(FRAME_BASE_LINK)
+                    break
+        return ""
+
     # -- messages
     def _select(self, topics: Iterable[str] | str | None) -> set[str] | None:
         if topics is None:

@@ -28,7 +28,7 @@ from typing import Any, Sequence
 from rclpy.node import Node
 
 from bb2_msgs_py.contract import TopicSpec, message_class, qos_profile, select_topics
-from bb2_ros.node_common import NodeConfigError, declare, node_options, run_node
+from bb2_ros.node_common import NodeConfigError, declare, node_frame, node_options, run_node
 
 NODE_NAME = "foxglove_bridge"
 DEFAULT_PORT = 8765
@@ -97,9 +97,12 @@ class FoxgloveBridge(Node):
               "(Foxglove: Open connection -> Foxglove WebSocket)", flush=True)
 
     def _forwarder(self, topic: str):
+        from bb2_msgs_py.contract import FRAME_ODOM
+
         from bb2_tools.recorder import derived_tf_cdr
 
         channel = self.channels[topic]
+        odom_frame = node_frame(self, FRAME_ODOM)  # map -> boat1/odom for a bridge in /boat1
         clock = self.get_clock()
         derived = self.derived.get(topic)
 
@@ -113,7 +116,7 @@ class FoxgloveBridge(Node):
                     self._latched[(topic, topic)] = (channel, data, t)
             if derived is not None:
                 try:
-                    tf = derived_tf_cdr(topic, data, t)
+                    tf = derived_tf_cdr(topic, data, t, odom_frame=odom_frame)
                 except (ValueError, KeyError, TypeError) as exc:
                     self.get_logger().warning(f"{topic}: no {derived[0]} from it ({exc})")
                     return

@@ -51,7 +51,8 @@ import time
 from pathlib import Path
 from typing import Any, Sequence
 
-from bb2_msgs_py.contract import SCENE_TOPIC, SIM, ContractError, TopicSpec, message_class, select_topics
+from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, SCENE_TOPIC, SIM, ContractError, TopicSpec, frame_prefix,
+                                  message_class, select_topics, vehicle_frame)
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros.node_common import restore_signals, stop_signals, take_all, time_msg
@@ -160,13 +161,13 @@ def tf_static_cdr_from_mountings_cdr(data: bytes, stamp_ns: int) -> bytes:
     return encode(tf_static_from_mountings(doc, stamp_ns))
 
 
-def tf_static_map_odom(stamp_ns: int) -> dict[str, Any]:
-    """A ``tf2_msgs/TFMessage`` (as nested dicts) with the identity ``map -> odom`` (the odometry is the ground
-    truth: odom is map), stamped ``stamp_ns``: it joins what is drawn in ``map`` (the path, the terrain, the sea)
-    to the tree of ``odom -> base_link``."""
+def tf_static_map_odom(stamp_ns: int, odom_frame: str = FRAME_ODOM) -> dict[str, Any]:
+    """A ``tf2_msgs/TFMessage`` (as nested dicts) with the identity ``map -> odom_frame`` (the odometry is the
+    ground truth: odom is map; ``boat1/odom`` for a boat in ``/boat1``), stamped ``stamp_ns``: it joins what is
+    drawn in ``map`` (the path, the terrain, the sea) to the tree of ``odom -> base_link``."""
     sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
-    return {"transforms": [{"header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": "map"},
-                            "child_frame_id": "odom",
+    return {"transforms": [{"header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": FRAME_MAP},
+                            "child_frame_id": odom_frame,
                             "transform": {"translation": {"x": 0.0, "y": 0.0, "z": 0.0},
                                           "rotation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}}]}
 
@@ -176,15 +177,16 @@ DERIVED_TOPICS = {ODOM_TOPIC: TF_TOPIC, MOUNTINGS_TOPIC: TF_STATIC_TOPIC, SCENE_
 ``/tf`` from the odometry, ``/tf_static`` from the sensor mountings and, with the scene, ``map -> odom``."""
 
 
-def derived_tf_cdr(topic: str, data: bytes, stamp_ns: int) -> bytes:
+def derived_tf_cdr(topic: str, data: bytes, stamp_ns: int, *, odom_frame: str = FRAME_ODOM) -> bytes:
     """The CDR of the tf topic derived from a message of ``topic`` (:data:`DERIVED_TOPICS`): ``/tf`` from
     ``/bb2/odom``, ``/tf_static`` (stamped ``stamp_ns``) from ``/bb2/sensors/mountings``; ValueError, KeyError or
-    TypeError on a mountings description it cannot read; the identity ``map -> odom`` from the scene
-    (``/bb2/scene/markers``).  What the recorder writes into bags and the Foxglove bridge serves."""
+    TypeError on a mountings description it cannot read; the identity ``map -> odom_frame`` from the scene
+    (``/bb2/scene/markers``; the vehicle's odom: ``boat1/odom`` for a reader in ``/boat1``).  What the recorder
+    writes into bags and the Foxglove bridge serves."""
     if topic == ODOM_TOPIC:
         return tf_cdr_from_odometry_cdr(data)
     if topic == SCENE_TOPIC:
-        return _tf_codec()[2](tf_static_map_odom(stamp_ns))
+        return _tf_codec()[2](tf_static_map_odom(stamp_ns, odom_frame))
     return tf_static_cdr_from_mountings_cdr(data, stamp_ns)
 
 
@@ -251,8 +253,10 @@ class Recorder:
         # ``node``: a node of the caller's (the `recorder` executable's, with its parameters and parameter
         # services, which spin_once serves from its own wait set); else one without parameter services
         self.node = node if node is not None else Node(node_name, start_parameter_services=False)
-        # /tf from the odometry and /tf_static from the sensor mountings
+        # /tf from the odometry and /tf_static from the sensor mountings and the scene (map -> the vehicle's odom:
+        # boat1/odom for a recorder in /boat1, as the boat's simulator names it)
         self.tf_from_odom = tf_from_odom and any(t.name in DERIVED_TOPICS for t in topics)
+        self.odom_frame = vehicle_frame(FRAME_ODOM, frame_prefix(self.node.get_namespace()))
         self.use_sim_time = bool(use_sim_time)
         self._sim_ns = 0  # the last /clock taken (ROS time 0 until the first, as rclpy's time source)
         self._deserialize = deserialize_message
@@ -392,7 +396,7 @@ class Recorder:
             derived = DERIVED_TOPICS.get(spec.name) if self.tf_from_odom else None
             if derived is not None:
                 try:
-                    tf = derived_tf_cdr(spec.name, data, t_ns)
+                    tf = derived_tf_cdr(spec.name, data, t_ns, odom_frame=self.odom_frame)
                 except (ValueError, KeyError, TypeError) as exc:  # the mountings are in the bag as they came
                     self.node.get_logger().warning(f"{spec.name}: no {derived} from it ({exc})")
                 else:

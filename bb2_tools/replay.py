@@ -475,8 +475,9 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
     if env is not None:
         notes.append(f"sea and current from the bag's {SEA}: {env.summary()}")
     sim = build_simulator(mission, build_model(mission, env))
+    base_link = reader.vehicle_frame_prefix() + FRAME_BASE_LINK  # boat1/base_link in a fleet boat's bag
     filt = _CommandFilter(CommandValidator(CommandLimits.from_actuators(
-        sim.model.params.act, plane_joints=PLANE_JOINTS, propeller_joint=PROPELLER_JOINT, frame_id=FRAME_BASE_LINK)))
+        sim.model.params.act, plane_joints=PLANE_JOINTS, propeller_joint=PROPELLER_JOINT, frame_id=base_link)))
     default_rps = nominal_rps(mission)
 
     planes: dict[int, np.ndarray] = {}
@@ -498,7 +499,7 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
                 continue
             ref.setdefault(cv.seconds_to_ns(s.t), s.as_vector())
         else:
-            s = cv.odometry_to_state(msg)
+            s = cv.odometry_to_state(msg, child_frame_id=base_link)
             ref.setdefault(_stamp_ns(msg), s.as_vector())
     if not ref:
         raise ReplayError(f"no readable {ref_topic} message in the bag")

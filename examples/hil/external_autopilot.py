@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from bb2_control.errors import NonFiniteInputError, PathFollowingError
     from bb2_msgs_py import conversions as cv
-    from bb2_msgs_py.contract import message_class, qos_profile
+    from bb2_msgs_py.contract import FRAME_BASE_LINK, frame_prefix, message_class, qos_profile, vehicle_frame
     from bb2_mission import load_mission, mission_components
 
     mission = load_mission(args.mission)
@@ -91,6 +91,9 @@ def main(argv: list[str] | None = None) -> int:
         kw["domain_id"] = args.domain_id
     rclpy.init(**kw)
     node = rclpy.create_node("external_autopilot")
+    # the vehicle's frames (base_link; boat1/base_link when run in /boat1 with --ros-args -r __ns:=/boat1)
+    prefix = frame_prefix(node.get_namespace())
+    base_link = vehicle_frame(FRAME_BASE_LINK, prefix)
     log = node.get_logger()
     joint_state = message_class("sensor_msgs/msg/JointState")
     pub_planes = node.create_publisher(joint_state, "/bb2/planes/cmd", qos_profile("/bb2/planes/cmd"))
@@ -110,8 +113,8 @@ def main(argv: list[str] | None = None) -> int:
         except (NonFiniteInputError, PathFollowingError, ValueError) as exc:
             log.error(f"controller failed at t = {state.t:.3f} s: {exc}", throttle_duration_sec=2.0)
             return
-        planes = cv.planes_message(0.0, [math.radians(float(d)) for d in out.planes_deg])
-        prop = cv.propeller_message(0.0, out.rps * 2.0 * math.pi)
+        planes = cv.planes_message(0.0, [math.radians(float(d)) for d in out.planes_deg], frame_id=base_link)
+        prop = cv.propeller_message(0.0, out.rps * 2.0 * math.pi, frame_id=base_link)
         planes.header.stamp = prop.header.stamp = stamp  # the time of the state answered
         pub_planes.publish(planes)
         pub_prop.publish(prop)
@@ -134,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.state_source == "odometry":
         def on_odom(msg) -> None:
             try:
-                on_state(cv.odometry_to_state(msg), msg.header.stamp)
+                on_state(cv.odometry_to_state(msg, child_frame_id=base_link), msg.header.stamp)
             except cv.ConversionError as exc:
                 log.warning(f"ignored /bb2/odom: {exc}", throttle_duration_sec=2.0)
         node.create_subscription(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", on_odom,
@@ -153,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
         def on_sample(name: str):
             def cb(msg) -> None:
                 try:
-                    pending["samples"].append(sample_from_message(name, msg, suite.config))
+                    pending["samples"].append(sample_from_message(name, msg, suite.config, frame_prefix=prefix))
                 except ValueError as exc:
                     log.warning(f"ignored {name}: {exc}", throttle_duration_sec=2.0)
             return cb

@@ -2,7 +2,8 @@
 ``ros2 launch bb2_bringup bb2_graph.launch.py`` flies a mission in lockstep and records a bag equal to
 bb2-launch's run of the same mission (every state, exactly), the simulator's end of the mission stops the whole
 launch, Ctrl-C (SIGINT to the launch's process group) stops every node cleanly with the bag finished, and
-``fleet.launch.py`` flies two namespaced boats at once without crosstalk (a boat's bag equals its run alone).
+``fleet.launch.py`` flies two namespaced boats at once without crosstalk (a boat's bag equals its run alone; its
+frames are its own: ``boat1/odom -> boat1/base_link`` under ``map``).
 
 Upstream tools from ../shared/ros2_tooling (tests/ros2_tooling.py; skipped with the reason when absent)."""
 from __future__ import annotations
@@ -15,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -156,3 +158,48 @@ def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):
     boat1, boat2 = states(fleet / "boat1"), states(fleet / "boat2")
     assert boat1 == states(solo)  # the same mission as alone, to the last bit: no crosstalk, deterministic
     assert len(boat2) == 51 and boat2[0.0][1:4] != boat1[0.0][1:4]  # its own mission (another start), flown
+    # every boat's frames carry its namespace under the shared map; alone, the frames are today's
+    assert frames(solo) == vehicle_frames("")
+    assert frames(fleet / "boat1") == vehicle_frames("boat1/")
+    no_terrain = vehicle_frames("boat2/")  # boat2's straight mission has no terrain: no altitude
+    del no_terrain["/bb2/altitude"]
+    assert frames(fleet / "boat2") == no_terrain
+    # a boat's bag is read against its own frames: bb2-analyze's reader gets the same run as alone (its rate
+    # commands, in boat1/base_link, included), bb2-replay re-flies it open loop with every command taken
+    from bb2_tools.bag_run import read_bag
+    from bb2_tools.replay import open_loop
+
+    alone, ours = read_bag(solo), read_bag(fleet / "boat1")
+    assert np.array_equal(ours.x, alone.x) and len(ours.rate_cmd.t) == len(alone.rate_cmd.t) > 0
+    assert np.array_equal(ours.rate_cmd.v, alone.rate_cmd.v) and not ours.warnings, ours.warnings
+    r = open_loop(fleet / "boat1")
+    assert r.rejected_commands == 0 and r.exact_commands == r.steps > 0 and r.max_position_m == 0.0, r.lines()
+
+
+def vehicle_frames(prefix: str) -> dict[str, set[str]]:
+    """What :func:`frames` finds in the bag of a boat whose frame ids carry ``prefix``."""
+    b, o = prefix + "base_link", prefix + "odom"
+    return {"/bb2/odom": {f"{o} -> {b}"}, "/tf": {f"{o} -> {b}"}, "/tf_static": {f"map -> {o}"},
+            "/bb2/imu": {b}, "/bb2/depth": {b}, "/bb2/altitude": {b}, "/bb2/planes/state": {b},
+            "/bb2/propeller/state": {b}, "/bb2/planes/cmd": {b}, "/bb2/propeller/cmd": {b}, "/bb2/autopilot/vh_cmd": {b},
+            "/bb2/guidance/rate_cmd": {b}, "/bb2/guidance/path_error": {prefix + "path_frenet"}, "/bb2/path": {"map"},
+            "/bb2/scene/markers": {b, "map"}}
+
+
+def frames(bag: Path) -> dict[str, set[str]]:
+    """topic -> the frame ids its messages carry (``parent -> child`` for odometry and transforms)."""
+    from bb2_tools.bagfile import BagReader
+
+    reader = BagReader(bag)
+    out: dict[str, set[str]] = {}
+    for name, _t, msg in reader.messages([t for t in vehicle_frames("") if t in reader.topics]):
+        got = out.setdefault(name, set())
+        if name == "/bb2/odom":
+            got.add(f"{msg.header.frame_id} -> {msg.child_frame_id}")
+        elif name in ("/tf", "/tf_static"):
+            got.update(f"{tf.header.frame_id} -> {tf.child_frame_id}" for tf in msg.transforms)
+        elif name == "/bb2/scene/markers":
+            got.update(m.header.frame_id for m in msg.markers)
+        else:
+            got.add(msg.header.frame_id)
+    return out

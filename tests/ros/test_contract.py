@@ -96,6 +96,24 @@ def test_odometry_round_trip_is_exact():
         assert abs(back.t - s.t) <= 0.5e-9  # stamps are whole nanoseconds
 
 
+def test_a_namespaced_vehicle_s_readers_take_its_frames_and_refuse_another_s():
+    """boat1's odometry (boat1/odom -> boat1/base_link) and rate command (boat1/base_link) read back where the
+    reader names boat1's base_link; boat2's, or the root namespace's, are refused."""
+    s = random_state()
+    msg = conv.state_to_odometry(s, frame_id="boat1/odom", child_frame_id="boat1/base_link")
+    np.testing.assert_allclose(conv.odometry_to_state(msg, child_frame_id="boat1/base_link").as_vector(),
+                               s.as_vector(), rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="'boat2/base_link', got 'boat1/base_link'"):
+        conv.odometry_to_state(msg, child_frame_id="boat2/base_link")
+    with pytest.raises(ValueError, match="'base_link', got 'boat1/base_link'"):
+        conv.odometry_to_state(msg)
+    rate = conv.rate_command_message(1.0, 0.02, -0.03, frame_id="boat1/base_link")
+    assert conv.rate_command_from_message(rate, frame_id="boat1/base_link") == (0.02, -0.03)
+    with pytest.raises(ValueError, match="must be in 'base_link', got 'boat1/base_link'"):
+        conv.rate_command_from_message(rate)
+    assert conv.path_error_message(0.0, [1, 2, 3], frame_id="boat1/path_frenet").header.frame_id == "boat1/path_frenet"
+
+
 def test_odometry_is_rep103():
     # heading psi = 0, level, moving ahead at 5 m/s (u = -5 native): ENU +x, forward speed +5 FLU
     s = VehicleState(1.0, np.array([10.0, 20.0, -30.0]), np.zeros(3), np.array([-5.0, 0.0, 0.0]),

@@ -157,3 +157,36 @@ def test_sample_from_message_refuses_what_carries_no_sample():
     gps = sc.gps_sample_message(next(s for s in samples if s.sensor == "gps"))
     with pytest.raises(ValueError, match="needs the suite"):
         sc.sample_from_message("/bb2/sensors/gps", gps)
+
+
+def test_a_namespaced_vehicle_s_sensor_frames_carry_its_prefix():
+    """A boat in /boat1: its samples go out in boat1/imu_link ..., its mountings hang boat1/imu_link ... under
+    boat1/base_link (the DVL beams under boat1/dvl_link), and its messages read back to the suite's own samples;
+    another boat's message (boat2/imu_link) or an unprefixed one is refused."""
+    from bb2_msgs_py.contract import frame_prefix, vehicle_frame
+
+    prefix = frame_prefix("/boat1")
+    assert prefix == "boat1/" and frame_prefix("/") == frame_prefix("") == ""
+    assert vehicle_frame("base_link", prefix) == "boat1/base_link" and vehicle_frame("map", prefix) == "map"
+    assert vehicle_frame("base_link", "") == "base_link"
+    suite, samples = _samples()
+    plain = {n: m.header.frame_id for s in samples for n, m in sc.sample_messages(s, suite.config)}
+    ours = {n: m.header.frame_id for s in samples for n, m in sc.sample_messages(s, suite.config, frame_prefix=prefix)}
+    assert ours == {n: "boat1/" + f for n, f in plain.items()} and ours["/bb2/sensors/imu"] == "boat1/imu_link"
+    assert ours[sc.DVL_RANGES_TOPIC] == "boat1/dvl_beam_3"  # the last beam's
+    d = sc.mountings_description(suite.config, frame_prefix=prefix)
+    plain_tfs = sc.mountings_description(suite.config)["transforms"]
+    assert [(t["parent"], t["child"]) for t in d["transforms"]] == [("boat1/" + t["parent"], "boat1/" + t["child"])
+                                                                   for t in plain_tfs]
+    assert ("boat1/dvl_link", "boat1/dvl_beam_0") in [(t["parent"], t["child"]) for t in d["transforms"]]
+    imu = next(s for s in samples if s.sensor == "imu")
+    (name, msg), = sc.sample_messages(imu, suite.config, frame_prefix=prefix)
+    back = sc.sample_from_message(name, msg, suite.config, frame_prefix=prefix)
+    assert back.frame_id == "imu_link" and np.array_equal(back.angular_velocity, imu.angular_velocity)
+    with pytest.raises(ValueError, match="frame_id 'imu_link' is not of this vehicle"):
+        sc.sample_from_message(name, sc.imu_sample_message(imu), suite.config, frame_prefix=prefix)
+    msg.header.frame_id = "boat2/imu_link"
+    with pytest.raises(ValueError, match="'boat2/imu_link' is not of this vehicle"):
+        sc.sample_from_message(name, msg, suite.config, frame_prefix=prefix)
+    with pytest.raises(ValueError, match="mounted as 'imu_link'"):  # the root namespace's reader: not its frame
+        sc.sample_from_message(name, msg, suite.config)
