@@ -37,6 +37,8 @@ other one is read-only (fixed at start-up; the set is refused):
                        recorder's acknowledgement of the states it holds), so a stalled recorder slows the graph
                        instead of losing messages (the controllers' answer is held meanwhile: no re-send, no
                        lockstep timeout); 0 = do not wait (``bb2-launch`` sets 10 when it records in lockstep).
+                       A finished run then ends (``exit_at_end``) only once the recorder acknowledges its final
+                       step, so the last steps still on their way to it are not lost with this node's writers.
 ``recorder_ack_timeout_s`` lockstep: a recorder that acknowledges nothing for this many wall s is given up on
                        (a warning; the graph steps on and the bag will have a gap) until it acknowledges again.
 ``command_timeout_s``  real time: a command older than this (wall time since it arrived), or none at all,
@@ -319,6 +321,7 @@ class Simulator(Node):
         self.finished = False
         self.diverged = ""
         self.done = False
+        self._final_wait_since: float | None = None  # wall s the finished run began waiting for the recorder
         self.exit_code = 0
         self._odom_msg = None
         self._t_start_wall = time.monotonic()
@@ -355,8 +358,30 @@ class Simulator(Node):
 
     def _set_exit_at_end(self, value: bool) -> None:
         self.exit_at_end = value
-        if value and (self.finished or self.diverged):
+        if value and self.diverged:
             self.done = True
+        elif value and self.finished:
+            self._end_when_recorded()
+
+    def _end_when_recorded(self) -> None:
+        """A finished run ends (``done``, with ``exit_at_end``) once the recorder holds its final step: in lockstep
+        with ``recorder_ack_window`` the last steps may still be on their way to it when the mission ends, and they
+        would be lost with this node's writers.  Waits for the acknowledgement of the final state at most
+        ``recorder_ack_timeout_s`` (wall), then ends all the same with a warning (the bag's gaps say the loss)."""
+        if not self.exit_at_end or self.done:
+            return
+        if self.time_mode is TimeMode.LOCKSTEP and self.ack.enabled and not self.ack.given_up:
+            final_ns = self._t_ns()
+            if self.ack.acked_ns is None or self.ack.acked_ns < final_ns:
+                now = time.monotonic()
+                if self._final_wait_since is None:
+                    self._final_wait_since = now
+                if now - self._final_wait_since < self.ack.timeout_s:
+                    return
+                self.get_logger().warning(
+                    f"the recorder did not acknowledge the final step t = {self.t:.3f} s within recorder_ack_timeout_s "
+                    f"{self.ack.timeout_s:g} s: ending all the same (the bag may lack the last steps)")
+        self.done = True
 
     def _locked(self, fn):
         def call(*args):
@@ -402,8 +427,11 @@ class Simulator(Node):
                 self._step(decision)
 
     def _on_ack(self, msg) -> None:
-        """The recorder holds every per-step topic up to ``msg.stamp``: a step held for it may go."""
+        """The recorder holds every per-step topic up to ``msg.stamp``: a step held for it may go (or, the run
+        finished, the node may end)."""
         self.ack.on_ack(cv.stamp_to_ns(msg.stamp))
+        if self.finished:
+            self._end_when_recorded()
         if self._held is not None and self._stepping():
             held, self._held = self._held, None
             self._step(held)
@@ -456,6 +484,8 @@ class Simulator(Node):
         self._publish_state()
 
     def _watchdog(self) -> None:
+        if self.finished and not self.done:
+            self._end_when_recorded()  # bounded wait for the recorder's acknowledgement of the final step
         if not self._stepping() or not self.started:
             return
         if self._held is not None:  # answered; waiting for the recorder, not the controllers
@@ -597,7 +627,7 @@ class Simulator(Node):
             self.finished = True
             self.get_logger().info(f"mission duration reached at t = {self.t:.3f} s")
             self._publish_status()
-            self.done = self.exit_at_end
+            self._end_when_recorded()
             return
         self._publish_sensors()
 

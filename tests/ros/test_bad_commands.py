@@ -315,6 +315,63 @@ def test_wait_for_readers_holds_the_first_state_until_a_recorder_reads_every_top
     assert cv.stamp_to_ns(first_odom.header.stamp) == 0  # the t = 0 odometry is in the bag
 
 
+def test_lockstep_run_ends_only_once_the_recorder_holds_its_final_step(bench):
+    """In lockstep with ``recorder_ack_window`` the graph may step ahead of the recorder, so when the mission ends
+    the last steps can still be on their way to it: a simulator that exited then took them with its writers (a bag
+    once ended 0.10 s short).  It now stays up until the recorder acknowledges the final state, then exits 0; a
+    recorder that never does is given up after ``recorder_ack_timeout_s`` (warned, exit 0 all the same)."""
+    from builtin_interfaces.msg import Time
+
+    b, start = bench
+    Header = message_class("std_msgs/msg/Header")
+    ack_pub = b.node.create_publisher(Header, "/bb2/recorder/ack", qos_profile("/bb2/recorder/ack"))
+    ok = np.radians([1.0, 1.0, -1.0, -1.0, 0.0])
+
+    def fly(sim, hold_from_t: float, seconds: float) -> float:
+        """Answer every state and acknowledge it, up to (not including) the states at or after
+        ``hold_from_t``; returns the newest state's time."""
+        answered: set[float] = set()
+        end = time.monotonic() + seconds
+        while time.monotonic() < end and sim.poll() is None:
+            t = b.t()
+            if b.states and t not in answered:
+                answered.add(t)
+                b.send(planes_rad=ok, omega=2 * math.pi, t=t)
+                if t < hold_from_t - 1e-9:
+                    ns = cv.seconds_to_ns(t)
+                    ack_pub.publish(Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9)))
+            time.sleep(0.002)
+        return b.t()
+
+    def ack(t: float) -> None:
+        ns = cv.seconds_to_ns(t)
+        ack_pub.publish(Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9)))
+
+    common = dict(time_mode="lockstep", duration_s=1.0, exit_at_end=True, recorder_ack_window=3,
+                  startup_timeout_s=2.0, lockstep_timeout_s=30.0, status_period_s=0.2)
+    sim = start(recorder_ack_timeout_s=60.0, **common)
+    b.wait(lambda: b.states, 30, "the first state", sim)
+    t_end = fly(sim, hold_from_t=1.0, seconds=8.0)  # every state answered, all but the final one acknowledged
+    assert t_end == pytest.approx(1.0), (t_end, b.last_status())
+    assert sim.poll() is None
+    time.sleep(2.0)
+    assert sim.poll() is None, "the simulator exited before the recorder acknowledged its final step"
+    ack(1.0)
+    out = sim.communicate(timeout=30)[0]
+    assert sim.returncode == 0, out
+    assert "did not acknowledge the final step" not in out, out
+
+    # a recorder that never acknowledges the final state: given up after recorder_ack_timeout_s, said, exit 0
+    with b.lock:
+        b.states.clear()
+    sim = start(recorder_ack_timeout_s=1.5, **common)
+    b.wait(lambda: b.states, 30, "the first state (second run)", sim)
+    fly(sim, hold_from_t=1.0, seconds=6.0)
+    out = sim.communicate(timeout=30)[0]
+    assert sim.returncode == 0, out
+    assert "did not acknowledge the final step t = 1.000 s within recorder_ack_timeout_s 1.5 s" in out, out
+
+
 @pytest.mark.parametrize("case", ["params_yaml", "params_type", "params_choice", "params_priority", "mission_yaml",
                                   "mission_key", "mission_missing", "no_mission"])
 def test_malformed_params_or_mission_exit_nonzero(tmp_path, case):
