@@ -197,25 +197,43 @@ def step_topics(topics: Sequence[TopicSpec]) -> set[str]:
     return {t.name for t in topics if t.name == STATE_TOPIC or (t.publisher == SIM and t.qos in ("sensor", "clock"))}
 
 
+STEP_START_TOPICS = frozenset({"/bb2/imu", "/bb2/planes/state", "/bb2/propeller/state"})
+"""Per-step topics the simulator stamps with the start ``t_n`` of the step they describe and publishes after its
+integration, beside the state of ``t_n+1``: they belong to the step of ``t_n+1``."""
+
+
 class StepAcks:
-    """What the recorder acknowledges: the newest stamp of each per-step topic it received, and the oldest of
-    those (the step up to which the bag holds every per-step topic that has begun).  Acknowledgements only go
-    forward; a topic counts from its first message on."""
+    """What the recorder acknowledges: the newest step of each per-step topic it received, and the oldest of those
+    (the step up to which the bag holds every per-step topic that has begun).  A message of
+    :data:`STEP_START_TOPICS` stamped ``t_n`` belongs to the step of ``t_n+1`` (the state it came with), once the
+    step is known from two successive states; so the final state of a run is acknowledged when everything of its
+    step is held.  Acknowledgements only go forward; a topic counts from its first message on."""
 
     def __init__(self, topics: set[str]) -> None:
         self.topics = frozenset(topics)
         self.newest_ns: dict[str, int] = {}
         self.acked_ns: int | None = None
+        self.step_ns: int | None = None  #: the smallest positive difference of successive state stamps seen
+        self._state_ns: int | None = None
 
     def received(self, topic: str, stamp_ns: int) -> None:
+        if topic == STATE_TOPIC:
+            if self._state_ns is not None and stamp_ns > self._state_ns:
+                d = int(stamp_ns) - self._state_ns
+                self.step_ns = d if self.step_ns is None else min(self.step_ns, d)
+            if self._state_ns is None or stamp_ns > self._state_ns:
+                self._state_ns = int(stamp_ns)
         if stamp_ns > self.newest_ns.get(topic, -1):
             self.newest_ns[topic] = int(stamp_ns)
+
+    def _step_of(self, topic: str, stamp_ns: int) -> int:
+        return stamp_ns + self.step_ns if topic in STEP_START_TOPICS and self.step_ns is not None else stamp_ns
 
     def next_ack(self) -> int | None:
         """The stamp to acknowledge now, or None (nothing new since the last)."""
         if not self.newest_ns:
             return None
-        ack = min(self.newest_ns.values())
+        ack = min(self._step_of(t, ns) for t, ns in self.newest_ns.items())
         if self.acked_ns is not None and ack <= self.acked_ns:
             return None
         self.acked_ns = ack

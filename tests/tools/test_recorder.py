@@ -334,12 +334,40 @@ def test_the_recorder_acknowledges_the_oldest_newest_stamp_of_the_per_step_topic
     assert acks.next_ack() is None
     for k in range(2, 6):
         acks.received("/bb2/state_native", 100 * k)
-    acks.received("/bb2/imu", 150)
-    assert acks.next_ack() == 150 and acks.next_ack() is None   # the IMU holds it back; once said, nothing new
+    acks.received("/bb2/imu", 150)                    # stamped with its step's start: it belongs to state 250
+    assert acks.next_ack() == 250 and acks.next_ack() is None   # the IMU holds it back; once said, nothing new
     acks.received("/bb2/imu", 450)
-    assert acks.next_ack() == 450
+    assert acks.next_ack() == 500                     # the state holds it now
     acks.received("/bb2/imu", 400)                    # an older one (a re-send) changes nothing
     assert acks.next_ack() is None and acks.newest_ns["/bb2/imu"] == 450
+
+
+def test_the_final_state_is_acknowledged_once_its_step_is_held():
+    """The IMU, plane and propeller states are stamped with the start of the step they describe and come with the
+    next state: the last state of a run (t_N) is acknowledged once the IMU of [t_N-1, t_N) and every state-stamped
+    topic of t_N are held, not before (the simulator ends a recorded lockstep run on that acknowledgement)."""
+    from bb2_msgs_py.contract import CONTRACT
+    from bb2_tools.recorder import StepAcks, step_topics
+
+    acks = StepAcks(step_topics(CONTRACT))
+    h = 50_000_000
+    state_stamped = ("/bb2/state_native", "/clock", "/bb2/odom", "/bb2/depth", "/bb2/altitude")
+    for n in range(4):                                # states t_0..t_3; the step-start topics of t_0..t_2
+        for topic in state_stamped:
+            acks.received(topic, n * h)
+        if n:
+            for topic in ("/bb2/imu", "/bb2/planes/state", "/bb2/propeller/state"):
+                acks.received(topic, (n - 1) * h)
+    assert acks.step_ns == h and acks.next_ack() == 3 * h     # everything of the final step t_3 is held
+    for topic in state_stamped[:-1]:                  # the state of t_4 and all but its altitude
+        acks.received(topic, 4 * h)
+    for topic in ("/bb2/imu", "/bb2/planes/state", "/bb2/propeller/state"):
+        acks.received(topic, 3 * h)
+    assert acks.next_ack() is None                    # the altitude of t_4 is not in yet
+    acks.received("/bb2/altitude", 4 * h)
+    assert acks.next_ack() == 4 * h
+    acks.received("/bb2/state_native", 4 * h)         # a re-sent state does not change the step
+    assert acks.step_ns == h and acks.next_ack() is None
 
 
 def test_tf_static_from_mountings_refuses_what_is_not_a_mountings_description():

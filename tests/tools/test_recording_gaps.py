@@ -117,6 +117,7 @@ def test_lockstep_canyon_with_the_recorder_stopped_5_s_records_every_step_of_eve
     assert counts["published"]["/bb2/state_native"] >= n_steps + 1, counts["published"]
     log = (out / "logs" / "simulator.log").read_text()
     assert "waits for the recorder for" in log and "the recorder caught up" in log, log[-2000:]
+    assert "did not acknowledge the final step" not in log, log[-2000:]  # the run ended on the final ack
 
 
 def test_realtime_recorder_stopped_5_s_the_gap_is_in_the_metadata_the_launcher_and_bb2_analyze(tmp_path):
