@@ -26,8 +26,6 @@ from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from bb2_msgs_py.contract import FRAME_BASE_LINK
-
 from bb2_tools.bagfile import BagError, BagReader, Gap, bag_gaps, gaps_by_topic
 
 __all__ = ["AnalysisError", "Series", "StatusEntry", "BagRun", "read_bag", "USED_TOPICS"]
@@ -212,7 +210,7 @@ def read_bag(path: str | Path, label: str | None = None) -> BagRun:
     bernstein = None
     path_samples = None
     status: list[StatusEntry] = []
-    base_link = reader.vehicle_frame_prefix() + FRAME_BASE_LINK  # boat1/base_link in a fleet boat's bag
+    base_link = reader.vehicle_base_link()  # boat1/base_link in a fleet boat's bag
     for m in reader.raw_messages(wanted):
         try:
             msg = decode(m.type, m.data)

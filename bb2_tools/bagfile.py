@@ -582,17 +582,22 @@ class BagReader:
     def vehicle_frame_prefix(self) -> str:
         """The prefix of the recorded vehicle's frame ids (``""``; ``"boat1/"`` for a boat of a fleet): from the
         first ``/bb2/odom`` (its child frame) or ``/bb2/planes/state`` (its frame), ``""`` without either.  Its
-        commands and odometry are read against ``<prefix>base_link``."""
+        commands and odometry are read against ``<prefix>base_link`` (:meth:`vehicle_base_link`)."""
         from bb2_msgs_py.contract import FRAME_BASE_LINK
 
         for topic in ("/bb2/odom", "/bb2/planes/state"):
             if self.message_counts.get(topic, 0):
-                for _t, _log, msg in self.messages(topic):
-                    frame = msg.child_frame_id if topic == "/bb2/odom" else msg.header.frame_id
-                    if frame.endswith(FRAME_BASE_LINK):
-                        return frame.removesuffix(FRAME_BASE_LINK)
-                    break
+                _t, _log, msg = next(iter(self.messages(topic)))
+                frame = msg.child_frame_id if topic == "/bb2/odom" else msg.header.frame_id
+                if frame.endswith(FRAME_BASE_LINK):
+                    return frame.removesuffix(FRAME_BASE_LINK)
         return ""
+
+    def vehicle_base_link(self) -> str:
+        """The recorded vehicle's body frame: ``base_link``, ``boat1/base_link`` in a fleet boat's bag."""
+        from bb2_msgs_py.contract import FRAME_BASE_LINK
+
+        return self.vehicle_frame_prefix() + FRAME_BASE_LINK
 
     # -- messages
     def _select(self, topics: Iterable[str] | str | None) -> set[str] | None:

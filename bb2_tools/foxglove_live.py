@@ -90,6 +90,9 @@ class FoxgloveBridge(Node):
                                                 server_listener=_LatchedReplay(self))
         except Exception as exc:  # e.g. the port is taken
             raise NodeConfigError(f"cannot serve on {host}:{port}: {exc}") from None
+        from bb2_msgs_py.contract import FRAME_ODOM
+
+        self.odom_frame = node_frame(self, FRAME_ODOM)  # map -> boat1/odom for a bridge in /boat1
         self.subs = [self.create_subscription(message_class(s.type), s.name, self._forwarder(s.name),
                                               qos_profile(s.name, reader=True), raw=True) for s in self.specs]
         self.url = f"ws://{host}:{self.server.port}"
@@ -97,12 +100,10 @@ class FoxgloveBridge(Node):
               "(Foxglove: Open connection -> Foxglove WebSocket)", flush=True)
 
     def _forwarder(self, topic: str):
-        from bb2_msgs_py.contract import FRAME_ODOM
-
         from bb2_tools.recorder import derived_tf_cdr
 
         channel = self.channels[topic]
-        odom_frame = node_frame(self, FRAME_ODOM)  # map -> boat1/odom for a bridge in /boat1
+        odom_frame = self.odom_frame
         clock = self.get_clock()
         derived = self.derived.get(topic)
 

@@ -51,11 +51,11 @@ import time
 from pathlib import Path
 from typing import Any, Sequence
 
-from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, SCENE_TOPIC, SIM, ContractError, TopicSpec, frame_prefix,
-                                  message_class, select_topics, vehicle_frame)
+from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, SCENE_TOPIC, SIM, ContractError, TopicSpec, message_class,
+                                  select_topics)
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
-from bb2_ros.node_common import restore_signals, stop_signals, take_all, time_msg
+from bb2_ros.node_common import node_frame, restore_signals, stop_signals, take_all, time_msg
 
 ODOM_TOPIC = "/bb2/odom"
 ODOM_TYPE = "nav_msgs/msg/Odometry"
@@ -274,7 +274,7 @@ class Recorder:
         # /tf from the odometry and /tf_static from the sensor mountings and the scene (map -> the vehicle's odom:
         # boat1/odom for a recorder in /boat1, as the boat's simulator names it)
         self.tf_from_odom = tf_from_odom and any(t.name in DERIVED_TOPICS for t in topics)
-        self.odom_frame = vehicle_frame(FRAME_ODOM, frame_prefix(self.node.get_namespace()))
+        self.odom_frame = node_frame(self.node, FRAME_ODOM)  # map -> boat1/odom for a recorder in /boat1
         self.use_sim_time = bool(use_sim_time)
         self._sim_ns = 0  # the last /clock taken (ROS time 0 until the first, as rclpy's time source)
         self._deserialize = deserialize_message

@@ -445,7 +445,7 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
     from bb2_mission.components import build_model
     from bb2_mission.lockstep_gate import CommandLimits, CommandValidator
     from bb2_msgs_py import conversions as cv
-    from bb2_msgs_py.contract import FRAME_BASE_LINK, PLANE_JOINTS, PROPELLER_JOINT
+    from bb2_msgs_py.contract import PLANE_JOINTS, PROPELLER_JOINT
     from bb2_sim.integrator import NonFiniteStateError
 
     reader = bag if isinstance(bag, BagReader) else BagReader(bag)
@@ -475,7 +475,7 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
     if env is not None:
         notes.append(f"sea and current from the bag's {SEA}: {env.summary()}")
     sim = build_simulator(mission, build_model(mission, env))
-    base_link = reader.vehicle_frame_prefix() + FRAME_BASE_LINK  # boat1/base_link in a fleet boat's bag
+    base_link = reader.vehicle_base_link()  # boat1/base_link in a fleet boat's bag
     filt = _CommandFilter(CommandValidator(CommandLimits.from_actuators(
         sim.model.params.act, plane_joints=PLANE_JOINTS, propeller_joint=PROPELLER_JOINT, frame_id=base_link)))
     default_rps = nominal_rps(mission)
