@@ -1,0 +1,111 @@
+"""Standard maneuvers for a batch of boats: the twin of :class:`bb2_sim.maneuvers.ManeuverCommander` (the v12
+autopilot, zig-zags, constant rudder, imposed planes, constant rps or the speed PI) with one set of settings per
+boat, and the batch model and simulator of a list of maneuvers.
+
+The boats share the hull and the physics profile; each keeps its own depth, speed, references, channel logic,
+sea state (the authors' table). Maneuvers with an ``environment`` (irregular sea, current) are refused.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from ..maneuvers import RAD2DEG, ManeuverSettings
+from ..model import BB2Model
+from ..profiles import get_profile
+from ..xplane import mixing_matrix
+from .autopilot import BatchSpeedPI, BatchV12Autopilot
+from .model import BatchModel
+from .simulator import BatchSimulator
+
+
+class BatchZigZag:
+    """Zig-zag commands +-A per boat, switched at the first major step where the monitored angle reaches +-C."""
+
+    def __init__(self, amplitude_deg, check_deg):
+        self.A = np.array(amplitude_deg, dtype=float)
+        self.C = np.array(check_deg, dtype=float)
+        self.sign = np.ones_like(self.A)
+        self.reversals: list[list[float]] = [[] for _ in range(len(self.A))]
+
+    def step(self, t: float, angle_deg: np.ndarray, boats: np.ndarray) -> np.ndarray:
+        """Commands (deg) of the given boats (indices) from their monitored angles (deg, rows of those boats)."""
+        s = self.sign[boats]
+        up = (s > 0) & (angle_deg >= self.C[boats])
+        down = (s < 0) & (angle_deg <= -self.C[boats])
+        for j in np.flatnonzero(up | down):
+            self.reversals[int(boats[j])].append(t)
+        s = np.where(up, -1.0, np.where(down, 1.0, s))
+        self.sign[boats] = s
+        return s * self.A[boats]
+
+
+class BatchManeuverCommander:
+    """Per major step: states (N, 12) -> plane commands (N, 5) deg (authors' plane signs) and rps commands (N,)."""
+
+    def __init__(self, settings: Sequence[ManeuverSettings]):
+        self.settings = list(settings)
+        S = self.settings
+        if not S:
+            raise ValueError("batch: no maneuvers")
+        self.n_boats = len(S)
+        arr = np.array
+        self.autopilot = BatchV12Autopilot([s.z_ref for s in S], [np.radians(s.heading_ref_deg) for s in S])
+        self.zigzag = BatchZigZag([s.amplitude_deg for s in S], [s.check_deg for s in S])
+        self._vz = np.flatnonzero([s.vertical == "zigzag" for s in S])
+        self._hz = np.flatnonzero([s.horizontal == "zigzag" for s in S])
+        self._rudder = np.flatnonzero([s.horizontal == "rudder" for s in S])
+        self._rudder_dh = arr([-s.rudder_deg for s in S])[self._rudder]
+        self._imposed = arr([s.vertical == "imposed" and s.horizontal == "imposed" for s in S])
+        self._imposed_planes = arr([s.planes_deg for s in S], dtype=float)
+        self._sail_pid = arr([s.sail_planes == "pid" for s in S])[self._vz]
+        self._rps_const = arr([s.rps_command for s in S], dtype=float)
+        self._pi = np.flatnonzero([s.propeller == "speed-pi" for s in S])
+        self.speed_pi = None
+        if len(self._pi):
+            profiles = {get_profile(S[i].profile).speed_pi_feedforward for i in self._pi}
+            if len(profiles) > 1:
+                raise ValueError("batch: the speed PI boats need one physics profile")
+            self.speed_pi = BatchSpeedPI([-S[i].speed_mps for i in self._pi], profiles.pop())
+        self._M = mixing_matrix()
+
+    def step(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Commands for the states x (N, 12) at time t (every boat ticks, as N single commanders would)."""
+        rps = self._rps_const.copy()
+        if self.speed_pi is not None:
+            rps[self._pi] = self.speed_pi.step(x[self._pi, 6])
+        dv_pid, dh_pd = self.autopilot.step(x[:, 2], x[:, 4], x[:, 5])
+        dv, dh = dv_pid.copy(), dh_pd.copy()
+        if len(self._vz):
+            dv[self._vz] = self.zigzag.step(t, x[self._vz, 4] * RAD2DEG, self._vz)
+        if len(self._hz):
+            dh[self._hz] = self.zigzag.step(t, x[self._hz, 5] * RAD2DEG, self._hz)
+        dh[self._rudder] = self._rudder_dh
+        planes = dv[:, None] * self._M[:, 0] + dh[:, None] * self._M[:, 1]
+        if len(self._vz):
+            planes[self._vz, 4] = np.where(self._sail_pid, dv_pid[self._vz], 0.0)
+        planes[self._imposed] = self._imposed_planes[self._imposed]
+        return planes, rps
+
+
+def batch_for_maneuvers(settings: Sequence[ManeuverSettings], model: BB2Model | None = None,
+                        hull_mesh: str | None = None, exact: bool = False
+                        ) -> tuple[BatchSimulator, BatchManeuverCommander]:
+    """The batch simulator (boats at their maneuvers' initial states, in their sea states) and the commander of a
+    list of maneuvers sharing one physics profile; ``model`` (that profile) gives the hull; ``exact``: see
+    :class:`bb2_sim.batch.BatchModel`."""
+    S = list(settings)
+    if not S:
+        raise ValueError("batch: no maneuvers")
+    if any(s.environment is not None for s in S):
+        raise ValueError("batch: irregular seas not supported yet (maneuvers with an environment)")
+    if len({get_profile(s.profile) for s in S}) > 1:
+        raise ValueError("batch: the boats of a batch share one physics profile")
+    if model is None:
+        model = BB2Model(hull_mesh, profile=S[0].profile)
+    elif model.profile != get_profile(S[0].profile):
+        raise ValueError(f"batch: the model's profile {model.profile.name!r} is not the maneuvers' "
+                         f"{S[0].profile!r}")
+    bm = BatchModel.from_sea_states(model, [s.sea_state for s in S], exact=exact)
+    return BatchSimulator(bm, np.array([s.initial_state() for s in S])), BatchManeuverCommander(S)

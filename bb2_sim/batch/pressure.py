@@ -1,0 +1,189 @@
+"""Pressure integration over the triangulated hull for a batch of boats (twin of
+:meth:`bb2_sim.hydrostatics.PressureIntegrator.loads`, the regular-wave path).
+
+It reuses the integrator's precomputed per-block data (merged points, weights and their moments), so both sum the
+same terms. Per boat the loads are
+
+* the hydrostatic part from the block moments. The fixed surfaces' block carries the buoyancy (~4e7 N terms that
+  cancel against the weight), so it is summed in the scalar code's order (its 1-ulp differences, ~7e-9 N, would
+  otherwise grow past 1e-12 in the states within 300 steps: the ROM amplifies ulp-level noise, see
+  ``tests/sim/test_batch.py``). The five planes' blocks are small (~1e4 N) and linear in the CG depth z0 and the
+  row rz of the body->earth rotation for given deflections: their loads are folded into ``z0 a + rz B`` (a (6,),
+  B (3, 6) per boat) once per step by :meth:`BatchPressure.prepare`, which also makes the hinge rotations, only
+  for the boats whose deflections changed (they are held over the step). Each evaluation then costs a few array
+  operations for the whole batch. The folding reassociates the planes' sums (1-ulp differences of ~1e5 N terms);
+  ``exact=True`` instead follows the scalar code's kernels for every block (numpy's stacked matmul and batched
+  einsum call them boat by boat): bit for bit the single loads, at about twice the batch's cost;
+* a boat in a regular sea, or every boat with free-surface clipping (profile switch): the scalar integrator's own
+  :meth:`PressureIntegrator.loads`, boat by boat (bit for bit the single run's loads). Its per-point wave term
+  (11 k points per boat and stage) dominates a boat's cost and does not shrink with the batch: it bounds the
+  speed-up of boats in a sea.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..frames import cross
+from ..hydrostatics import PressureIntegrator
+from .waves import BatchWaves
+
+
+@dataclass
+class PlaneRotations:
+    """Per boat, for its held plane deflections (N, 5) deg: the hinge rotations R_i (N, 5, 3, 3) and the planes'
+    hydrostatic loads folded as z0 a + rz B, a (N, 6), B (N, 3, 6) (body axes, moments about the CG)."""
+
+    deflections_deg: np.ndarray
+    Ri: np.ndarray
+    a: np.ndarray
+    B: np.ndarray
+
+    def subset(self, rows: np.ndarray) -> "PlaneRotations":
+        return PlaneRotations(self.deflections_deg[rows], self.Ri[rows], self.a[rows], self.B[rows])
+
+
+class BatchPressure:
+    """Loads [X, Y, Z, K, M, N] (N, N m; native body axes, moments about the CG) of the pressure on N hulls."""
+
+    def __init__(self, hydro: PressureIntegrator, exact: bool = False):
+        self.exact = bool(exact)
+        self.rho, self.g = hydro.rho, hydro.g
+        self._S0, self._S1 = hydro._S0, hydro._S1          # (B, 6), (B, 3, 6) block moments
+        self._pivots = hydro._pivots                         # (B - 1, 3) plane pivots, body axes
+        self._hydro = hydro
+        # R_i(delta) = RX_i Rz(delta) RX_i^T = cos(delta) C_i + sin(delta) S_i + E_i
+        RX = hydro._hinges                                   # (B - 1, 3, 3) hinge frames
+        Pc, Ps, Pe = np.diag([1.0, 1.0, 0.0]), np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]), \
+            np.diag([0.0, 0.0, 1.0])
+        self._C, self._S, self._E = (RX @ P @ RX.transpose(0, 2, 1) for P in (Pc, Ps, Pe))
+        self._RX = RX
+
+    # ------------------------------------------------------------------------------------------- per step
+    def prepare(self, deflections_deg: np.ndarray, previous: PlaneRotations | None = None) -> PlaneRotations:
+        """Hinge rotations R_i = RX_i Rz(delta_i) RX_i^T and the planes' folded hydrostatic loads for the actual
+        deflections (N, 5) deg (without incidence); rows whose deflections equal ``previous``'s are copied."""
+        d = np.asarray(deflections_deg, dtype=float)
+        if previous is not None and previous.deflections_deg.shape == d.shape:
+            changed = np.flatnonzero((previous.deflections_deg != d).any(axis=1))
+            if len(changed) == 0:
+                return previous
+            if len(changed) < len(d):
+                part = self.prepare(d[changed])
+                out = PlaneRotations(d.copy(), previous.Ri.copy(), previous.a.copy(), previous.B.copy())
+                out.Ri[changed], out.a[changed], out.B[changed] = part.Ri, part.a, part.B
+                return out
+        rad = np.deg2rad(d)
+        if self.exact:                                 # the scalar code's RX @ Rz @ RX^T, boat by boat
+            c, s = np.cos(rad), np.sin(rad)
+            Rz = np.zeros(d.shape + (3, 3))
+            Rz[..., 0, 0], Rz[..., 0, 1], Rz[..., 1, 0], Rz[..., 1, 1], Rz[..., 2, 2] = c, -s, s, c, 1.0
+            Ri = np.matmul(np.matmul(self._RX, Rz), self._RX.transpose(0, 2, 1))
+            return PlaneRotations(d.copy(), Ri, np.empty((len(d), 0)), np.empty((len(d), 0)))
+        c, s = np.cos(rad)[..., None, None], np.sin(rad)[..., None, None]
+        Ri = c * self._C + s * self._S + self._E                               # (N, 5, 3, 3)
+        rg = self.rho * self.g
+        S0, S1, P = self._S0[1:], self._S1[1:], self._pivots
+        # plane block b: G_b = -rg (cz_b S0_b + vz_b S1_b), cz_b = z0 + rz.P_b, vz_b = rz R_i
+        #                    = -rg (z0 S0_b + rz H_b),  H_b = P_b S0_b^T + R_i S1_b  (3, 6)
+        n = len(d)
+        G = np.empty((n, len(P), 4, 6))                     # the block sums of z0 (a) and of rz_k (rows of B)
+        G[:, :, 0] = -rg * S0
+        for b in range(len(P)):                             # H_b = P_b S0_b^T + R_i S1_b, one product per plane
+            G[:, b, 1:] = (-rg) * (P[b][:, None] * S0[b] + (Ri[:, b].reshape(-1, 3) @ S1[b]).reshape(n, 3, 6))
+        aB = self._plane_sum(Ri, G)
+        return PlaneRotations(d.copy(), Ri, aB[:, 0], aB[:, 1:])
+
+    def _plane_sum(self, Ri: np.ndarray, G: np.ndarray) -> np.ndarray:
+        """Sum over the planes of their loads for block sums G_b (N, 5, C, 6) in the plane frames (C columns):
+        F_b = -R_i G_b[:3], M_b = P_b x F_b - R_i G_b[3:] -> (N, C, 6)."""
+        F = _rotate(Ri, G[..., :3])
+        np.negative(F, out=F)
+        P = self._pivots[:, None]
+        Mp = np.empty_like(F)
+        Mp[..., 0] = P[..., 1] * F[..., 2] - P[..., 2] * F[..., 1]
+        Mp[..., 1] = P[..., 2] * F[..., 0] - P[..., 0] * F[..., 2]
+        Mp[..., 2] = P[..., 0] * F[..., 1] - P[..., 1] * F[..., 0]
+        Mp -= _rotate(Ri, G[..., 3:])
+        out = np.empty(F.shape[:1] + F.shape[2:-1] + (6,))
+        out[..., 0:3] = _sum_over_planes(F)
+        out[..., 3:6] = _sum_over_planes(Mp)
+        return out
+
+    # ------------------------------------------------------------------------------------------- per stage
+    def loads(self, pos: np.ndarray, R: np.ndarray, t, waves: BatchWaves, rot: PlaneRotations,
+              clip_emerged: bool = False) -> np.ndarray:
+        """Pressure loads (N, 6) of N boats.
+
+        pos: CG earth positions (N, 3); R: body->earth rotations (3, 3, N); t: scalar or (N,); waves: the boats'
+        waves; rot: :meth:`prepare` of their actual deflections.
+        """
+        n = len(pos)
+        single = np.arange(n) if clip_emerged else np.flatnonzero(waves.wavy)
+        out = np.empty((n, 6))
+        calm = np.ones(n, dtype=bool)
+        calm[single] = False
+        if calm.any():
+            rows = None if calm.all() else np.flatnonzero(calm)
+            sub = (lambda a: a) if rows is None else (lambda a: a[rows])
+            rot_c = rot if rows is None else rot.subset(rows)
+            if self.exact:
+                res = self._calm_loads_exact(sub(pos), np.ascontiguousarray(sub(R[0::2].transpose(2, 0, 1))), rot_c)
+            else:
+                z0 = sub(pos[:, 2])
+                rz = np.ascontiguousarray(R[2].T) if rows is None else np.ascontiguousarray(R[2][:, rows].T)
+                res = self._calm_loads(z0, rz, rot_c)
+            if rows is None:
+                out = res
+            else:
+                out[rows] = res
+        for i in single:
+            ti = t if np.ndim(t) == 0 else float(t[i])
+            out[i] = self._hydro.loads(pos[i], np.ascontiguousarray(R[:, :, i]), ti, waves.waves[i],
+                                       rot.deflections_deg[i], clip_emerged=clip_emerged)
+        return out
+
+    def _calm_loads(self, z0: np.ndarray, rz: np.ndarray, rot: PlaneRotations) -> np.ndarray:
+        """Calm-water loads (n, 6) without clipping: the fixed block in the scalar code's order, the planes folded.
+        z0: CG earth z (n,); rz: row z of the body->earth rotation (n, 3)."""
+        rg = self.rho * self.g
+        S0, S1 = self._S0[0], self._S1[0]
+        hydro0 = z0[:, None] * S0 + (rz[:, 0, None] * S1[0] + rz[:, 1, None] * S1[1] + rz[:, 2, None] * S1[2])
+        B = rot.B
+        planes = z0[:, None] * rot.a + (rz[:, 0, None] * B[:, 0] + rz[:, 1, None] * B[:, 1]
+                                        + rz[:, 2, None] * B[:, 2])
+        return -((-rg) * hydro0) + planes
+
+    def _calm_loads_exact(self, pos: np.ndarray, rxz: np.ndarray, rot: PlaneRotations) -> np.ndarray:
+        """Calm-water loads (n, 6) without clipping, every operation as the scalar code's (bit for bit).
+        pos: CG earth positions (n, 3); rxz: rows x and z of the body->earth rotation (n, 2, 3)."""
+        rg = self.rho * self.g
+        S0, S1, P, Ri = self._S0, self._S1, self._pivots, rot.Ri
+        vz = np.concatenate([rxz[:, None, 1], np.matmul(rxz[:, None], Ri)[:, :, 1]], axis=1)      # (n, B, 3)
+        cz = np.concatenate([pos[:, None, 2], (np.matmul(P, rxz.transpose(0, 2, 1)) + pos[:, None, 0::2])[..., 1]],
+                            axis=1)                                                               # (n, B)
+        G = (-rg) * (cz[..., None] * S0 + (vz[..., 0, None] * S1[:, 0] + vz[..., 1, None] * S1[:, 1]
+                                           + vz[..., 2, None] * S1[:, 2]))
+        out = -G[:, 0]
+        F = -np.einsum("nbij,nbj->nbi", Ri, G[:, 1:, :3])
+        out[:, 0:3] += F.sum(axis=1)
+        out[:, 3:6] += (cross(P, F) - np.einsum("nbij,nbj->nbi", Ri, G[:, 1:, 3:])).sum(axis=1)
+        return out
+
+
+def _rotate(Ri: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """R_i g per boat, plane and column: Ri (N, 5, 3, 3), g (N, 5, C, 3) -> (N, 5, C, 3)."""
+    out = np.empty(g.shape)
+    g0, g1, g2 = g[..., 0], g[..., 1], g[..., 2]
+    for i in range(3):
+        out[..., i] = Ri[:, :, i, 0, None] * g0 + Ri[:, :, i, 1, None] * g1 + Ri[:, :, i, 2, None] * g2
+    return out
+
+
+def _sum_over_planes(a: np.ndarray) -> np.ndarray:
+    """a[:, 0] + a[:, 1] + ... (N, P, ..., 3) -> (N, ..., 3), in plane order (the scalar code's sum over axis 0)."""
+    out = a[:, 0] + a[:, 1]
+    for i in range(2, a.shape[1]):
+        out += a[:, i]
+    return out

@@ -1,0 +1,266 @@
+"""The batch ROM (bb2_sim.batch) equals N single Simulator runs on every state at every step.
+
+Tolerance: 1e-12 relative to each state component's magnitude over the run (floor 1: absolute 1e-12 m, rad,
+m/s, rad/s for the small components). The default batch folds the small plane blocks of the pressure integral
+(1-ulp differences of ~1e5 N terms), and the ROM amplifies ulp-level noise: a single run whose state is perturbed
+by 1 ulp per step drifts ~1e-12 from itself within 300 steps. So the default batch keeps the large terms bit for
+bit (the buoyancy block; boats in a sea run the scalar wave code) and the comparisons run 200-300 steps (10-15 s).
+``exact=True`` follows the scalar kernels everywhere: bit for bit equal (checked where numpy's and math's
+transcendental functions agree, as on the project's machines).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bb2_sim.batch import BatchModel, BatchSimulator
+from bb2_sim.batch.maneuvers import batch_for_maneuvers
+from bb2_sim.integrator import Simulator
+from bb2_sim.maneuvers import ManeuverCommander, maneuver_settings
+from bb2_sim.model import BB2Model
+from bb2_sim.waves import Wave, wave_for_sea_state
+
+TOL = 1e-12
+
+
+def _libm_agrees() -> bool:
+    """numpy's float64 sin/cos/tan/arctan/arccos/exp equal math's here (no SIMD variants that differ by an ulp)."""
+    x = np.linspace(-3.0, 3.0, 2001)
+    fs = [(np.sin, math.sin), (np.cos, math.cos), (np.tan, math.tan), (np.arctan, math.atan), (np.exp, math.exp)]
+    return all(np.array_equal(f(x), [g(v) for v in x.tolist()]) for f, g in fs) and \
+        np.array_equal(np.arccos(x / 3.0), [math.acos(v / 3.0) for v in x.tolist()])
+
+
+@pytest.fixture(scope="module")
+def calm_model():
+    return BB2Model()
+
+
+def _single(model: BB2Model, sea_state, profile: str = "iowa") -> BB2Model:
+    """A single-boat model on the same hull surfaces (no second mesh load)."""
+    return BB2Model(model.surfaces, profile=profile, sea_state=sea_state)
+
+
+def _assert_close(batch: np.ndarray, single: np.ndarray) -> float:
+    """batch, single: (steps, N, 12). Returns the largest error relative to the component scales."""
+    scale = np.maximum(1.0, np.abs(single).max(axis=(0, 1)))
+    err = np.abs(batch - single) / scale
+    worst = float(err.max())
+    step, boat, comp = np.unravel_index(int(err.argmax()), err.shape)
+    assert worst <= TOL, f"boat {boat}, state {comp}, step {step}: error {worst:.3g} > {TOL:g}"
+    return worst
+
+
+def _assert_exact(batch: np.ndarray, single: np.ndarray) -> None:
+    """The exact mode: within the tolerance anywhere, and bit for bit where numpy's libm agrees with math's."""
+    _assert_close(batch, single)
+    if _libm_agrees():
+        assert np.array_equal(batch, single), f"{int((batch != single).sum())} states differ in exact mode"
+
+
+# ------------------------------------------------------------------------------------------------ (a) open loop
+SEA_STATES = [0, 3, 4, 5, 0, 5]
+HEADINGS_DEG = [0.0, 90.0, 180.0, 45.0, 30.0, 270.0]
+DEPTHS = [-100.0, -30.0, -40.0, -25.0, -60.0, -20.0]
+SPEEDS = [5.1444, 4.0, 3.0, 5.5, 2.5, 4.5]
+PLANES = np.array([[0, 0, 0, 0, 0], [3, -2, 1, 4, -5], [-5, 5, -5, 5, 2], [10, 10, -10, -10, 0],
+                   [1, 2, 3, 4, 5], [-3, 0, 3, 0, -3]], dtype=float)
+RPS = np.array([1.2861, 1.0, 0.8, 1.4, 0.6, 1.1])
+
+
+def _mixed_x0() -> np.ndarray:
+    x0 = np.zeros((6, 12))
+    x0[:, 2] = DEPTHS
+    x0[:, 5] = np.radians(HEADINGS_DEG)
+    x0[:, 6] = [-s for s in SPEEDS]
+    return x0
+
+
+def test_mixed_open_loop_batch_equals_single_runs(calm_model):
+    assert all(not wave_for_sea_state(s, calm_model.params).calm for s in (3, 4, 5))
+    x0 = _mixed_x0()
+    batch = BatchSimulator(BatchModel.from_sea_states(calm_model, SEA_STATES), x0)
+    exact = BatchSimulator(BatchModel.from_sea_states(calm_model, SEA_STATES, exact=True), x0)
+    singles = [Simulator(_single(calm_model, s), x0[i]) for i, s in enumerate(SEA_STATES)]
+    n = 300
+    xb, xe, xs = np.empty((n, 6, 12)), np.empty((n, 6, 12)), np.empty((n, 6, 12))
+    ballast = np.array([0.0, 0.0, 500.0, 0.0, -300.0, 0.0])
+    for k in range(n):
+        rec = batch.step(PLANES, RPS, ballast)
+        exact.step(PLANES, RPS, ballast)
+        assert rec.t == singles[0].t
+        for i, s in enumerate(singles):
+            r1 = s.step(PLANES[i], RPS[i], ballast[i])
+            np.testing.assert_array_equal(rec.act.planes_deg[i], r1.act.planes_deg)
+            if k in (0, n - 1):   # the loads of the major evaluation: to round-off of the 4e7 N pressure terms
+                scale = np.abs(r1.ev.hydrostatic).max()
+                np.testing.assert_allclose(rec.ev.forces[i], r1.ev.forces, rtol=0, atol=1e-12 * scale)
+                np.testing.assert_allclose(rec.ev.hydrostatic[i], r1.ev.hydrostatic, rtol=0, atol=1e-12 * scale)
+                assert rec.ev.prop.thrust[i] == pytest.approx(r1.ev.prop.thrust, rel=1e-12)
+        xb[k], xe[k] = batch.x, exact.x
+        xs[k] = [s.x for s in singles]
+    assert not batch.diverged.any()
+    _assert_close(xb, xs)
+    _assert_exact(xe, xs)
+
+
+def test_batch_evaluation_equals_single_evaluation_with_per_boat_times_and_profile():
+    """One evaluation, the corrected profile (every switch: clipping, guards, ...), per-boat times."""
+    model = BB2Model(profile="corrected")
+    waves = [Wave(), wave_for_sea_state(5, model.params), wave_for_sea_state(3, model.params)]
+    bm = BatchModel(model, waves)
+    rng = np.random.default_rng(4)
+    x = np.zeros((3, 12))
+    x[:, 2] = [-12.0, -14.0, -30.0]          # near the surface: the clipping matters
+    x[:, 3:6] = rng.normal(0.0, 0.1, (3, 3))
+    x[:, 6:9] = [[-4.0, 0.2, 0.1], [-3.0, -0.1, 0.05], [-5.0, 0.0, -0.1]]
+    x[:, 9:12] = rng.normal(0.0, 0.01, (3, 3))
+    t = np.array([0.3, 1.7, 2.45])
+    sim = BatchSimulator(bm, x)
+    act = sim.actuators.step(rng.normal(0.0, 3.0, (3, 5)), np.array([1.0, 1.2, 0.9]), np.array([0.0, 100.0, 0.0]))
+    mem = bm.new_memory()
+    mem.store(t - 0.05, rng.normal(0.0, 0.1, (3, 15, 3)))
+    ev = bm.evaluate(t, x, act, mem)
+    from bb2_sim.actuators import ActuatorOutputs
+    from bb2_sim.added_mass import DerivativeMemory
+    for i, w in enumerate(waves):
+        single = BB2Model(model.surfaces, profile="corrected")
+        single.wave = w
+        dm = DerivativeMemory()
+        dm.store(t[i] - 0.05, mem._u[1, i])
+        e1 = single.evaluate(t[i], x[i], ActuatorOutputs(act.planes_deg[i], act.rps[i], act.dmass_kg[i]), dm)
+        np.testing.assert_allclose(ev.xdot[i], e1.xdot, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(ev.hydrostatic[i], e1.hydrostatic, rtol=1e-12, atol=1e-6)
+        assert ev.alpha_deg[i] == pytest.approx(e1.alpha_deg, abs=1e-12)
+
+
+def test_batch_lookups_equal_the_scalar_simulink_lookups_bit_for_bit(calm_model):
+    """Every table (hull, planes stacked per group, thrust deduction), inputs inside, on and beyond the
+    breakpoints and the clamps (linear extrapolation from the end segments)."""
+    from bb2_sim.batch.lookup import BatchRomTables, Segments
+    T, B = calm_model.tables, BatchRomTables(calm_model.tables)
+    rng = np.random.default_rng(7)
+
+    def inputs(table, n=400):
+        cols = []
+        for bp in table.breakpoints:
+            lo, hi = bp[0], bp[-1]
+            span = hi - lo
+            x = rng.uniform(lo - 0.5 * span, hi + 0.5 * span, n)
+            x[:len(bp)] = bp                                   # exactly on every breakpoint too
+            cols.append(x)
+        return cols
+
+    for name, table in list(T.hull.items()) + [("thrust_deduction", T.thrust_deduction)]:
+        xs = inputs(table)
+        batch = (B.hull[name] if name in B.hull else B.thrust_deduction)(
+            Segments(), *[(f"x{k}", x) for k, x in enumerate(xs)])
+        single = np.array([table.lookup(*v) for v in zip(*[x.tolist() for x in xs])])
+        np.testing.assert_array_equal(batch, single, err_msg=name)
+    for comp, groups in B.planes.items():
+        for planes, table in groups:
+            xs = inputs(T.planes[comp][planes[0]], 200)
+            cols = [np.stack([x] * len(planes), axis=1) for x in xs]
+            for j in range(len(planes)):                         # members see different inputs
+                for c in cols:
+                    rng.shuffle(c[:, j])
+            got = table(Segments(), *[(f"x{k}", c) for k, c in enumerate(cols)], stacked=True)
+            for j, i in enumerate(planes):
+                want = [T.planes[comp][i].lookup(*v) for v in zip(*[c[:, j].tolist() for c in cols])]
+                np.testing.assert_array_equal(got[:, j], want, err_msg=f"{comp} plane {i + 1}")
+
+
+# ------------------------------------------------------------------------------------------------ (b) autopilot
+def test_v12_autopilot_maneuvers_batch_equals_single_runs(calm_model):
+    settings = [
+        maneuver_settings("self-propulsion"),
+        maneuver_settings("depth-heading"),                         # sea state 5, depth and heading change
+        maneuver_settings("turning-circle"),
+        maneuver_settings("hzz", sea_state=3),
+        maneuver_settings("vzz", amplitude_deg=5.0, check_deg=0.5, sail_planes="pid"),
+        maneuver_settings("open-loop", planes_deg=(2, -2, 2, -2, 1), sea_state=4),
+        maneuver_settings("self-propulsion", propeller="speed-pi", speed_mps=4.0, heading_ref_deg=20.0),
+    ]
+    sim, cmd = batch_for_maneuvers(settings, calm_model)
+    sim_e, cmd_e = batch_for_maneuvers(settings, calm_model, exact=True)
+    singles = [(Simulator(_single(calm_model, s.sea_state), s.initial_state()), ManeuverCommander(s))
+               for s in settings]
+    n = 200
+    xb, xe, xs = (np.empty((n, len(settings), 12)) for _ in range(3))
+    for k in range(n):
+        sim_e.step(*cmd_e.step(sim_e.t, sim_e.x))
+        planes, rps = cmd.step(sim.t, sim.x)
+        for i, (s, c) in enumerate(singles):
+            p1, r1 = c.step(s.t, s.x)
+            np.testing.assert_allclose(planes[i], p1, rtol=1e-12, atol=1e-9)
+            assert rps[i] == pytest.approx(r1, rel=1e-12, abs=1e-12)
+            s.step(p1, r1)
+        sim.step(planes, rps)
+        xb[k], xe[k] = sim.x, sim_e.x
+        xs[k] = [s.x for s, _ in singles]
+    _assert_close(xb, xs)
+    _assert_exact(xe, xs)
+    assert cmd.zigzag.reversals[4] == singles[4][1].zigzag.reversals and cmd.zigzag.reversals[4]
+
+
+# ------------------------------------------------------------------------------------------------ (c) divergence
+def test_a_diverging_boat_is_reported_frozen_and_leaves_the_others_alone(calm_model):
+    x0 = _mixed_x0()[:3]
+    x0[1, 6] = 0.0                        # at rest: the iowa profile divides by |u| = 0 (quirk Q13) -> NaN
+    batch = BatchSimulator(BatchModel.from_sea_states(calm_model, SEA_STATES[:3]), x0)
+    single = Simulator(_single(calm_model, SEA_STATES[1]), x0[1])
+    with pytest.raises(Exception) as e1:
+        single.step(PLANES[1], RPS[1])
+    rec = batch.step(PLANES[:3], RPS[:3])
+    assert rec.newly_diverged.tolist() == [1]
+    assert batch.diverged.tolist() == [False, True, False]
+    assert type(batch.errors[1]) is type(e1.value) and "diverged" in str(batch.errors[1])
+    np.testing.assert_array_equal(batch.x[1], x0[1])          # frozen at t_n
+    others = [Simulator(_single(calm_model, SEA_STATES[i]), x0[i]) for i in (0, 2)]
+    for r in others:
+        r.step(PLANES[[0, 2][others.index(r)]], RPS[[0, 2][others.index(r)]])
+    bad_cmd = PLANES[:3].copy()
+    bad_cmd[1] = np.nan                     # a diverged boat's commands are ignored
+    for _ in range(20):
+        rec = batch.step(bad_cmd, RPS[:3])
+        assert rec.boats.tolist() == [0, 2] and len(rec.newly_diverged) == 0
+        for j, i in enumerate((0, 2)):
+            others[j].step(PLANES[i], RPS[i])
+    np.testing.assert_array_equal(batch.x[1], x0[1])
+    xs = np.array([[r.x for r in others]])
+    _assert_close(batch.x[None, [0, 2]], xs)
+
+
+# ------------------------------------------------------------------------------------------------ (d) bad input
+def test_bad_shapes_and_refused_environments_give_clear_errors(calm_model):
+    bm = BatchModel(calm_model, n_boats=2)
+    with pytest.raises(ValueError, match=r"initial states must be \(2, 12\)"):
+        BatchSimulator(bm, np.zeros((3, 12)))
+    with pytest.raises(ValueError, match="finite"):
+        BatchSimulator(bm, np.full((2, 12), np.nan))
+    sim = BatchSimulator(bm, _mixed_x0()[:2])
+    with pytest.raises(ValueError, match=r"plane commands must be \(2, 5\)"):
+        sim.step(np.zeros(5), 1.0)
+    with pytest.raises(ValueError, match=r"rps commands must be a scalar or \(2,\)"):
+        sim.step(np.zeros((2, 5)), np.ones(3))
+    with pytest.raises(ValueError, match=r"ballast commands"):
+        sim.step(np.zeros((2, 5)), 1.0, np.zeros((2, 1)))
+    with pytest.raises(ValueError, match="commands must be finite"):
+        sim.step(np.zeros((2, 5)), np.array([1.0, math.inf]))
+    with pytest.raises(ValueError, match=r"states must be \(2, 12\)"):
+        bm.evaluate(0.0, np.zeros((2, 11)), sim.actuators.step(np.zeros((2, 5)), np.ones(2), np.zeros(2)),
+                    bm.new_memory())
+    with pytest.raises(ValueError, match="give the waves of the boats or n_boats"):
+        BatchModel(calm_model)
+    with pytest.raises(ValueError, match="irregular seas not supported yet"):
+        BatchModel(calm_model, [Wave(), object()])
+    from bb2_sim.sea import ComponentSea, JonswapSpectrum, discretise
+    irregular = BB2Model(calm_model.surfaces, sea=ComponentSea(discretise(JonswapSpectrum(2.0, 8.0, 3.3), 8, seed=1)))
+    with pytest.raises(ValueError, match="batch: irregular seas not supported yet"):
+        BatchModel(irregular, n_boats=2)
+    from bb2_sim.current import Current
+    with pytest.raises(ValueError, match="batch: currents not supported yet"):
+        BatchModel(BB2Model(calm_model.surfaces, current=Current(0.5, 45.0)), n_boats=2)
+    assert sim.n == 0 and not sim.diverged.any()          # nothing stepped by the refused calls
