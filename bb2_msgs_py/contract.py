@@ -70,6 +70,11 @@ WORLD_FRAMES = frozenset({FRAME_MAP, FRAME_MAP_NED, FRAME_NATIVE})
 path_frenet, the sensors' frames) are the vehicle's own."""
 
 
+GLOBAL_TOPICS = ("/diagnostics",)
+"""Contract topics every vehicle of a graph shares (never under a boat's namespace): the standard diagnostics topic
+carries the statuses of every node of every boat (each also on its boat's ``bb2/status``)."""
+
+
 def frame_prefix(namespace: str) -> str:
     """The prefix of the frame ids of a vehicle whose nodes run in ``namespace``: ``""`` in the root namespace (the
     single-vehicle frames unchanged), ``"boat1/"`` in ``/boat1`` (``boat1/base_link``, ``boat1/odom`` under ``map``:

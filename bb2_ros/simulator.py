@@ -733,7 +733,8 @@ class Simulator(Node):
                  else DiagnosticStatus.OK)
         msg_text = (f"diverged: {self.diverged}" if self.diverged else f"FAILSAFE: {self.gate.failsafe_reason}"
                     if failsafe else f"{vals['state']}, {self.time_mode.value}")
-        st = DiagnosticStatus(level=level, name="bb2/simulator", message=msg_text, hardware_id="bb2_rom",
+        st = DiagnosticStatus(level=level, name="bb2/simulator", message=msg_text,
+                              hardware_id=self.get_fully_qualified_name(),  # /boat1/simulator in a fleet
                               values=[KeyValue(key=k, value=v) for k, v in vals.items()])
         from std_msgs.msg import Header
         msg = DiagnosticArray(header=Header(stamp=stamp(self.t)), status=[st])

@@ -835,7 +835,8 @@ def unrecorded_losses(reader: "BagReader", published: dict[str, int], gaps: Sequ
 
 MULTI_PUBLISHER_TYPES = ("diagnostic_msgs/msg/DiagnosticArray",)
 """Types whose topics have a publisher per node (``/bb2/status``, ``/diagnostics``): their sequence numbers are
-followed per publisher, told apart by the status names in the message (:func:`stream_source`)."""
+followed per publisher, told apart by the status names in the message and the namespace of the node that sent
+them (:func:`stream_source`)."""
 
 
 @functools.cache
@@ -847,15 +848,22 @@ def _diagnostics_decoder():
 
 
 def stream_source(type_name: str, data: bytes) -> str:
-    """Which publisher a message of a :data:`MULTI_PUBLISHER_TYPES` topic comes from (its status names), else ''
-    (the message info does not carry the publisher's id)."""
+    """Which publisher a message of a :data:`MULTI_PUBLISHER_TYPES` topic comes from, else '' (the message info
+    does not carry the publisher's id): its status names, each under the namespace of the node that sent it when
+    that is not the root (the status's ``hardware_id``, the node's path: ``boat1/bb2/simulator`` from
+    ``/boat1/simulator``), so the same node of two boats on the global ``/diagnostics`` are two publishers."""
     if type_name not in MULTI_PUBLISHER_TYPES:
         return ""
     try:
         msg = _diagnostics_decoder()(data)
-        return ",".join(sorted({str(st.name) for st in msg.status}))
+        return ",".join(sorted({_status_source(str(st.name), str(st.hardware_id)) for st in msg.status}))
     except Exception:  # undecodable: followed as one more publisher
         return "?"
+
+
+def _status_source(name: str, hardware_id: str) -> str:
+    namespace = hardware_id.rsplit("/", 1)[0].strip("/") if hardware_id.startswith("/") else ""
+    return f"{namespace}/{name}" if namespace else name
 
 
 class SequenceGaps:

@@ -51,8 +51,8 @@ import time
 from pathlib import Path
 from typing import Any, Sequence
 
-from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, SCENE_TOPIC, SIM, ContractError, TopicSpec, message_class,
-                                  select_topics)
+from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, GLOBAL_TOPICS, SCENE_TOPIC, SIM, ContractError, TopicSpec,
+                                  message_class, select_topics)
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros.node_common import node_frame, restore_signals, stop_signals, take_all, time_msg
@@ -563,6 +563,10 @@ def _main(argv: Sequence[str] | None) -> int:
         depth = args.depth if args.depth is not None else par["queue_depth"]
         batch = args.batch_period if args.batch_period is not None else par["batch_period_s"]
         specs = select_topics(topics)
+        if topics is None and node.get_namespace() != "/":  # a boat's recorder records its boat
+            specs = [s for s in specs if s.name not in GLOBAL_TOPICS]
+            print(f"bb2-record: in {node.get_namespace()}: not recording {', '.join(GLOBAL_TOPICS)} (every boat's "
+                  "statuses; this boat's are in its bb2/status)", flush=True)
         if chunk <= 0 or depth <= 0 or flush < 0 or not 0 <= batch <= 1:
             raise ContractError("chunk size and queue depth must be > 0, flush period >= 0, batch period in [0, 1] s")
         if par["storage_id"] != "mcap":

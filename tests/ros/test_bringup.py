@@ -164,6 +164,12 @@ def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):
     no_terrain = vehicle_frames("boat2/")  # boat2's straight mission has no terrain: no altitude
     del no_terrain["/bb2/altitude"]
     assert frames(fleet / "boat2") == no_terrain
+    # the global /diagnostics (every boat's statuses) is in the solo bag, not in a boat's: its own are in bb2/status
+    from bb2_tools.bagfile import BagReader
+
+    assert "/diagnostics" in BagReader(solo).topics
+    for b in ("boat1", "boat2"):
+        assert "/diagnostics" not in BagReader(fleet / b).topics and BagReader(fleet / b).message_counts["/bb2/status"]
     # a boat's bag is read against its own frames: bb2-analyze's reader gets the same run as alone (its rate
     # commands, in boat1/base_link, included), bb2-replay re-flies it open loop with every command taken
     from bb2_tools.bag_run import read_bag

@@ -272,6 +272,35 @@ def test_sequence_gaps_find_losses_head_losses_and_new_publishers():
     assert json.loads(g.to_json())[0]["missing"] == 3
 
 
+def test_the_same_node_of_two_boats_on_diagnostics_is_two_publishers():
+    """/diagnostics is global: the path_following nodes of /boat1 and /boat2 both publish status
+    ``bb2/path_following``, each numbered from 1.  The namespace of the node that sent it (the status's hardware_id)
+    tells them apart, so two boats interleaved lose nothing (they once read as a head gap of one publisher:
+    the fleet's bag warned of a lost /diagnostics message); the root namespace's sources are the status names."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    from rclpy.serialization import serialize_message
+
+    from bb2_tools.bagfile import SequenceGaps, stream_source
+
+    def cdr(hardware_id: str) -> bytes:
+        return serialize_message(DiagnosticArray(status=[DiagnosticStatus(name="bb2/path_following",
+                                                                          hardware_id=hardware_id)]))
+
+    t = "diagnostic_msgs/msg/DiagnosticArray"
+    assert stream_source(t, cdr("/path_following")) == "bb2/path_following"
+    assert stream_source(t, cdr("/boat1/path_following")) == "boat1/bb2/path_following"
+    assert stream_source(t, cdr("/fleet/boat2/path_following")) == "fleet/boat2/bb2/path_following"
+    assert stream_source(t, cdr("bb2_rom")) == "bb2/path_following"
+    g = SequenceGaps()
+    for seq, boat in ((2, "boat2"), (1, "boat1"), (1, "boat2"), (2, "boat1"), (3, "boat2"), (3, "boat1")):
+        g.observe("/diagnostics", seq, seq, stream_source(t, cdr(f"/{boat}/path_following")))
+    assert [(x.source, x.missing) for x in g.gaps] == [("boat2/bb2/path_following", 1)]  # boat2's first: lost
+    g = SequenceGaps()  # read as one publisher, the same stream had a gap
+    for seq in (2, 1, 1, 2, 3, 3):
+        g.observe("/diagnostics", seq, seq, "bb2/path_following")
+    assert g.missing == 1
+
+
 def test_gaps_are_written_with_the_sequence_numbers_and_survive_recovery(tmp_path):
     """A bag written with publication sequence numbers tells its gaps from them (bag_gaps), and recover keeps the
     numbers and writes the gaps into the recovered bag's metadata."""

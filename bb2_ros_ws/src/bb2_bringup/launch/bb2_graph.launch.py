@@ -42,7 +42,8 @@ from launch_ros.actions import Node
 from launch_ros.substitutions import ExecutableInPackage
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
-NOT_REMAPPED = ("/diagnostics", "/tf")  # the standard diagnostics topic is global; /tf is written into bags only
+NOT_REMAPPED = ("/diagnostics", "/tf")  # the standard diagnostics topic is global (a boat's recorder leaves it
+# out: bb2_msgs_py.contract.GLOBAL_TOPICS); /tf is written into bags only
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
 RECORDER_ACK_WINDOW = 10  # bb2_tools.launcher.RECORDER_ACK_WINDOW: steps the simulator may run ahead of the recorder
 
