@@ -214,15 +214,12 @@ class StepAcks:
         self.newest_ns: dict[str, int] = {}
         self.acked_ns: int | None = None
         self.step_ns: int | None = None  #: the smallest positive difference of successive state stamps seen
-        self._state_ns: int | None = None
 
     def received(self, topic: str, stamp_ns: int) -> None:
-        if topic == STATE_TOPIC:
-            if self._state_ns is not None and stamp_ns > self._state_ns:
-                d = int(stamp_ns) - self._state_ns
-                self.step_ns = d if self.step_ns is None else min(self.step_ns, d)
-            if self._state_ns is None or stamp_ns > self._state_ns:
-                self._state_ns = int(stamp_ns)
+        newest = self.newest_ns.get(topic)
+        if topic == STATE_TOPIC and newest is not None and stamp_ns > newest:
+            d = int(stamp_ns) - newest
+            self.step_ns = d if self.step_ns is None else min(self.step_ns, d)
         if stamp_ns > self.newest_ns.get(topic, -1):
             self.newest_ns[topic] = int(stamp_ns)
 
