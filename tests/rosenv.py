@@ -102,3 +102,23 @@ def library_trajectory(mission_file: Path):
         runner.step()
         xs.append(np.r_[runner.sim.t, runner.sim.x])
     return np.array(xs)
+
+
+_domain_claims: list[int] = []  # the claims' lock descriptors, held until this test process ends
+
+
+def claimed_domain() -> int:
+    """A ROS domain id in 102..232 that no other test process of this machine holds: claimed with the launcher's
+    lock files (``bb2_tools.graph_monitor.claim_domain``; bb2-launch picks its own in 1..101), so tests running in
+    parallel (``pytest -n``) or beside another test run never share a domain.  The claim is held until this test
+    process ends."""
+    import random
+
+    from bb2_tools.graph_monitor import claim_domain
+
+    for d in random.sample(range(102, 233), 131):
+        fd = claim_domain(d)
+        if fd is not None:
+            _domain_claims.append(fd)
+            return d
+    raise AssertionError("every ROS domain in 102..232 is claimed by another test process")

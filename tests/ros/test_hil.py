@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import random
 import shutil
 import subprocess
 import sys
@@ -27,7 +26,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 RUN_HIL = REPO / "examples" / "hil" / "run_hil.py"
@@ -80,7 +79,7 @@ class Listener:
 def _quiet_listener(attempts: int = 8) -> tuple[int, Listener]:
     """A listener on a random domain in 100..230 nobody else uses (other test runs pick random domains too)."""
     for _ in range(attempts):
-        domain_id = random.randint(100, 230)
+        domain_id = claimed_domain()
         lst = Listener(domain_id)
         time.sleep(1.0)
         if not lst.others():
@@ -213,7 +212,7 @@ def test_external_autopilot_on_sensors_alone_in_real_time(tmp_path):
     duration = 12.0
     summary = tmp_path / "hil.json"
     proc = subprocess.run([sys.executable, str(RUN_HIL), "--mission", str(MISSION), "--duration", str(duration),
-                           "--sensors", "tactical", "--domain-id", str(random.randint(100, 230)), "--summary",
+                           "--sensors", "tactical", "--domain-id", str(claimed_domain()), "--summary",
                            str(summary)], cwd=REPO, env=ros_env(), capture_output=True, text=True,
                           timeout=duration + 120)
     out = proc.stdout + proc.stderr
@@ -237,7 +236,7 @@ def test_external_autopilot_on_another_network_host(tmp_path):
     duration = 15.0
     before = set(subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout.split())
     proc = subprocess.run([sys.executable, str(RUN_HIL), "--mission", str(MISSION), "--duration", str(duration),
-                           "--netns", "--domain-id", str(random.randint(100, 230)), "--summary", str(summary)],
+                           "--netns", "--domain-id", str(claimed_domain()), "--summary", str(summary)],
                           cwd=REPO, env=ros_env(), capture_output=True, text=True, timeout=duration + 90)
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out[-4000:]

@@ -6,7 +6,6 @@ trajectory CSV (every step, %.17g) and the test also compares the odometry it re
 """
 from __future__ import annotations
 
-import random
 import signal
 import threading
 import time
@@ -21,7 +20,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import library_trajectory, spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import claimed_domain, library_trajectory, spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = REPO / "config" / "bb2_graph.yaml"
@@ -80,7 +79,7 @@ class Listener:
 def test_graph_lockstep_equals_library_runner(tmp_path, state_source):
     """``native``: the controllers run on /bb2/state_native (exact); ``odometry``: on /bb2/odom (REP-103,
     quaternion -> Euler), which still stays within 1e-9 m of the runner on this mission."""
-    domain_id = random.randint(100, 230)
+    domain_id = claimed_domain()
     mission = tmp_path / "canyon_short.yaml"
     mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nduration_s: {DURATION_S}\n")
     csv_file = tmp_path / "traj.csv"

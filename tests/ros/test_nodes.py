@@ -3,7 +3,6 @@ applies the parameters of a params file; plus the exact contract conversions the
 from __future__ import annotations
 
 import math
-import random
 import signal
 import subprocess
 import threading
@@ -22,7 +21,7 @@ from bb2_msgs_py.contract import message_class, qos_profile, topic  # noqa: E402
 from bb2_sim.state import VehicleState  # noqa: E402
 from bb2_ros.node_common import remap_rules  # noqa: E402
 
-from rosenv import spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 MISSION = "path: circle_r400\nstack: rate_2022\nduration_s: 30\n"
@@ -96,7 +95,7 @@ class Probe:
 @pytest.fixture
 def graph(tmp_path):
     """(probe, start(module, *ros_args) -> Popen, mission file); every process stopped with SIGINT after."""
-    domain_id = random.randint(100, 230)
+    domain_id = claimed_domain()
     mission = tmp_path / "circle.yaml"
     mission.write_text(MISSION)
     probe = Probe(domain_id)

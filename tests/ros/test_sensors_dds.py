@@ -4,7 +4,6 @@ it, the mountings are latched, and two runs with the same seed give byte-identic
 from __future__ import annotations
 
 import json
-import random
 import signal
 import threading
 from pathlib import Path
@@ -18,7 +17,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py.contract import message_class, qos_profile, topic  # noqa: E402
 from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS  # noqa: E402
 
-from rosenv import spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = REPO / "config" / "bb2_graph.yaml"
@@ -112,7 +111,7 @@ def _t(msg) -> float:
 def test_sensor_topics_at_their_rates_and_identical_for_a_seed(tmp_path):
     mission = tmp_path / "canyon_sensors.yaml"
     mission.write_text(MISSION)
-    first = _run(tmp_path, mission, random.randint(100, 230))
+    first = _run(tmp_path, mission, claimed_domain())
     msgs = _decode(first)
 
     # the last step integrated is [DURATION - h, DURATION): samples up to just before DURATION_S
@@ -147,6 +146,6 @@ def test_sensor_topics_at_their_rates_and_identical_for_a_seed(tmp_path):
                                                            "gps_link", "dvl_beam_0"}
     assert mount["rates_hz"]["imu"] == 200.0
 
-    second = _run(tmp_path, mission, random.randint(100, 230))
+    second = _run(tmp_path, mission, claimed_domain())
     for name in SENSOR_TOPICS:
         assert second[name] == first[name], name

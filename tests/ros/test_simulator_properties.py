@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 import os
-import random
 import re
 import subprocess
 import sys
@@ -25,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from rosenv import claimed_domain  # noqa: E402  (tests/rosenv.py)
 
 pytestmark = pytest.mark.ros
 rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
@@ -212,7 +213,7 @@ class SimProcess:
 def quiet_bench(attempts: int = 8) -> tuple[int, Bench]:
     """A bench on a random domain in 100..230 where nobody else is (other test runs pick random domains too)."""
     for _ in range(attempts):
-        domain_id = random.randint(100, 230)
+        domain_id = claimed_domain()
         b = Bench(domain_id)
         time.sleep(1.0)  # discovery
         others = [n for n, _ in b.node.get_node_names_and_namespaces() if n != "property_bench"]

@@ -8,7 +8,6 @@ simulation time (as the recorder with use_sim_time).
 from __future__ import annotations
 
 import math
-import random
 import signal
 import subprocess
 import sys
@@ -28,7 +27,7 @@ from bb2_tools.bagfile import BagReader, BagWriter, qos_entry  # noqa: E402
 from bb2_tools.replay import (PlaybackClock, ReplayError, main, open_loop, replay_qos,  # noqa: E402
                               select_bag_topics)
 
-from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 DURATION_S = 3.0
@@ -183,7 +182,7 @@ class Listener:
 def _quiet_listener(topics: dict[str, str], attempts: int = 8) -> tuple[int, Listener]:
     """A listener on a random domain in 100..230 nobody else uses (other test runs pick random domains too)."""
     for _ in range(attempts):
-        domain_id = random.randint(100, 230)
+        domain_id = claimed_domain()
         lst = Listener(domain_id, topics)
         time.sleep(1.0)
         if not [n for n, _ in lst.node.get_node_names_and_namespaces() if n != "replay_test"]:
