@@ -22,6 +22,10 @@ other one is read-only (fixed at start-up; the set is refused):
 ``min_state_subscribers`` publish the first state (start stepping) only once this many readers of
                        ``/bb2/state_native`` are discovered (e.g. 3: path_following, l1_autopilot, recorder), at
                        most ``startup_timeout_s``; 0 = start at once.
+``wait_for_commands``  real time: the first deadline only once valid plane and propeller commands have answered
+                       the first state (re-sent every ``lockstep_retry_s``; the controllers are up), at most
+                       ``startup_timeout_s`` (then a warning and the failsafe until they come, as without it);
+                       ``bb2-launch`` and the launch files set it, so a run does not start on the failsafe.
 ``realtime_priority``  real time: SCHED_FIFO priority (1-99, default 50) of the stepping thread, so the period
                        holds on a loaded machine (HIL); 0 = normal scheduling.  Refused by the OS (no
                        CAP_SYS_NICE / rtprio limit): one warning, normal scheduling.  A thread that overruns every
@@ -214,6 +218,12 @@ class Simulator(Node):
         self.min_state_subscribers = int(P("min_state_subscribers", 0,
                                            "wait for this many /bb2/state_native readers before the first step"))
         self._readers_since: float | None = None
+        self._awaiting_commands = bool(P(
+            "wait_for_commands", False, "real time: start the clock (the first deadline) only once valid plane and "
+            "propeller commands answer the first state (re-sent every lockstep_retry_s), at most startup_timeout_s; "
+            "false = step on the failsafe from the first tick until they come (bb2-launch sets it)"))
+        self._awaiting_commands = self._awaiting_commands and self.time_mode is TimeMode.REALTIME
+        self._first_state_wall = self._resent_wall = 0.0
         self.wait_for_readers = bool(P("wait_for_readers", False,
                                        "publish the first state only once every topic published here has a "
                                        "reader (a recorder), at most startup_timeout_s"))
@@ -479,8 +489,8 @@ class Simulator(Node):
             self.warn.warn("start_readers", f"starting after {waited:.1f} s: "
                            + (f"no reader of {', '.join(unread)}" if unread else "the readers still matching"))
         self.start_timer.cancel()
-        self._next_tick = time.monotonic()  # before `started`: the real-time thread reads both unlocked
-        self.started = True
+        self._next_tick = self._first_state_wall = self._resent_wall = time.monotonic()  # before `started`: the
+        self.started = True                                 # real-time thread reads them unlocked
         self._publish_state()
 
     def _watchdog(self) -> None:
@@ -511,11 +521,35 @@ class Simulator(Node):
                                                f"{self.gate.timeout_s(self.sim.n):g} s: stepping with {why}")
             self._step(decision)
         elif action is WatchdogAction.RESEND:
-            if self._nav_msg is not None:
-                self.pub[NAV_STATE_TOPIC].publish(self._nav_msg)
-            self.pub["/bb2/state_native"].publish(self._state_native_msg)
-            if self._odom_msg is not None and self._odom_msg.header.stamp == self._state_stamp:
-                self.pub["/bb2/odom"].publish(self._odom_msg)  # for controllers on state_source odometry
+            self._resend_state()
+
+    def _resend_state(self) -> None:
+        """The current state again (the controllers replay their cached answer to a state they answered)."""
+        if self._nav_msg is not None:
+            self.pub[NAV_STATE_TOPIC].publish(self._nav_msg)
+        self.pub["/bb2/state_native"].publish(self._state_native_msg)
+        if self._odom_msg is not None and self._odom_msg.header.stamp == self._state_stamp:
+            self.pub["/bb2/odom"].publish(self._odom_msg)  # for controllers on state_source odometry
+
+    def _first_commands_in(self) -> bool:
+        """Real time with ``wait_for_commands``, before the first deadline: whether the clock may start (valid
+        plane and propeller commands have come, or ``startup_timeout_s`` passed: then a warning, and the run
+        starts on the failsafe as without the wait); meanwhile the state at t = 0 is re-sent every
+        ``lockstep_retry_s``, for controllers that match it late."""
+        now = time.monotonic()
+        if self.gate.planes_deg is not None and self.gate.rps is not None:
+            self.get_logger().info(f"real time: the controllers answered the first state after "
+                                   f"{now - self._first_state_wall:.1f} s: the clock starts")
+            return True
+        if now - self._first_state_wall >= self.gate.timings.startup_timeout_s:
+            self.warn.warn("start_commands", f"real time: no valid commands {now - self._first_state_wall:.1f} s "
+                                             "after the first state (startup_timeout_s): the clock starts on the "
+                                             "failsafe")
+            return True
+        if now - self._resent_wall >= self.gate.timings.lockstep_retry_s:
+            self._resent_wall = now
+            self._resend_state()
+        return False
 
     def _realtime_loop(self) -> None:
         """Real time: step at ``rate_hz`` on absolute monotonic deadlines (sleeps to the next deadline; a
@@ -537,6 +571,14 @@ class Simulator(Node):
             if not self.started:  # _start sets the first deadline
                 self._rt_stop.wait(0.01)
                 continue
+            if self._awaiting_commands:  # the loop closes before the clock starts (wait_for_commands)
+                with self._lock:
+                    if self._first_commands_in():
+                        self._awaiting_commands = False
+                        self._next_tick = time.monotonic()
+                if self._awaiting_commands:
+                    self._rt_stop.wait(0.005)
+                    continue
             delay = self._next_tick - time.monotonic()
             if delay > 0:
                 time.sleep(delay)

@@ -3,9 +3,9 @@
 The launcher starts every node at once (their imports and mission builds overlap): in lockstep the
 simulator publishes its first state only once the recorder reads every topic it publishes, then waits
 for the controllers; in real time it starts last, once the recorder is subscribed to every contract
-topic, and steps on the failsafe until commands come.  Each node runs in its own process and process
-group, on an isolated ``ROS_DOMAIN_ID`` (a random free one unless ``--domain-id``).  A
-small rclpy monitor node inside the launcher shows sim time (``/clock``), mission progress
+topic, and starts its clock once the controllers answer its first state (``wait_for_commands``).  Each node
+runs in its own process and process group, on an isolated ``ROS_DOMAIN_ID`` (a random free one unless
+``--domain-id``).  A small rclpy monitor node inside the launcher shows sim time (``/clock``), mission progress
 (``/bb2/mission/progress``) and the real-time factor on one line.
 
 It stops the graph cleanly when the mission ends (``--end-at``: the progress reaches 1, or the
@@ -381,7 +381,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     it publishes has a reader (the recorder), so the bag misses nothing, and then waits for the
     controllers (re-sending the state until they answer).  Without a recorder the simulator starts at
     once.  In real time the simulator starts last, once the recorder is ready (it steps on the wall
-    clock from its first tick, on the failsafe until commands arrive).  ``monitor`` gives the recorder
+    clock once the controllers answer its first state: ``wait_for_commands``).  ``monitor`` gives the recorder
     its readiness probe.  ``groups`` (:func:`compose_groups`): nodes composed into one process each
     (:mod:`bb2_ros.container`, every node with the arguments it has alone); such a process starts, finishes
     the graph, restarts and is reported as the nodes it holds would be.  ``foxglove_port``: the live Foxglove
@@ -405,6 +405,8 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 ros += ["-p", "wait_for_readers:=true"]
             if mode == "lockstep" and record:  # nor when the recorder stalls: the graph waits for it
                 ros += ["-p", f"recorder_ack_window:={RECORDER_ACK_WINDOW}"]
+            if mode == "realtime":  # the clock starts once the controllers answer, not on the start-up failsafe
+                ros += ["-p", "wait_for_commands:=true"]
         else:
             ros += ["-p", "use_sim_time:=true"]
         if attempt > 0 and name in REJOINING:  # a node with state along the run joins the run where it stands

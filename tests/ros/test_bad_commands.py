@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 import os
-import random
 import signal
 import sys
 import subprocess
@@ -24,7 +23,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 MISSION = "path: circle_r400\nstack: rate_2022\nduration_s: 300\n"
@@ -136,7 +135,7 @@ def _params(tmp_path: Path, **values: Any) -> str:
 
 @pytest.fixture
 def bench(tmp_path):
-    domain_id = random.randint(100, 230)
+    domain_id = claimed_domain()
     mission = tmp_path / "circle.yaml"
     mission.write_text(MISSION)
     b = Bench(domain_id)
@@ -225,6 +224,42 @@ def test_realtime_rejects_clamps_and_fails_safe(bench):
                  "rejected plane command", "expected 'base_link'", "rejected stale", "failsafe:"):
         assert text in out, text
     assert out.count("rejected non-finite plane command") < int(st["rejected_nonfinite"])  # throttled
+
+
+def test_realtime_clock_starts_once_the_controllers_answer_the_first_state(bench):
+    """``wait_for_commands`` (bb2-launch sets it in real time): the state at t = 0 is re-sent, and the clock stands
+    still, until valid commands answer it; then the run steps on the wall clock without a failsafe step."""
+    b, start = bench
+    sim = start(time_mode="realtime", rate_hz=40, wait_for_commands=True, lockstep_retry_s=0.1,
+                status_period_s=0.2)
+    b.wait(lambda: b.states and b.node.count_subscribers("/bb2/planes/cmd") > 0, 20, "simulator up", sim)
+    time.sleep(2.0)  # no controller yet: 2 s of wall time, 4 s of sim time at 40 Hz without the wait
+    with b.lock:
+        ts = [s.t for s in b.states]
+    assert set(ts) == {0.0} and len(ts) >= 5, ts[-10:]   # only the first state, re-sent
+    assert float(b.last_status().get("sim_time_s", "nan")) == 0.0, b.last_status()
+    omega = 2 * math.pi * 1.2
+    b.send(planes_rad=np.zeros(5), omega=omega, t=0.0)   # the answer to the first state
+    b.stream(1.5, planes_rad=np.zeros(5), omega=omega)   # then answers as they come
+    assert b.t() >= 0.5, b.t()
+    with b.lock:
+        fs = [s for s in b.status if float(s.get("sim_time_s", 0)) > 0]
+    assert fs and all(s["failsafe"] == "false" for s in fs), [s["failsafe_reason"] for s in fs]
+    assert all(int(s["failsafe_steps"]) == 0 for s in fs), fs[-1]
+    sim.send_signal(signal.SIGINT)
+    out, _ = sim.communicate(timeout=10)
+    assert "real time: the controllers answered the first state after" in out, out
+
+
+def test_realtime_clock_starts_on_the_failsafe_when_no_controller_answers_in_time(bench):
+    b, start = bench
+    sim = start(time_mode="realtime", rate_hz=40, wait_for_commands=True, startup_timeout_s=1.5,
+                status_period_s=0.2)
+    b.wait(lambda: b.t() > 0.5, 20, "the clock started without commands", sim)
+    b.wait(lambda: b.last_status().get("failsafe") == "true", 5, "failsafe", sim)
+    sim.send_signal(signal.SIGINT)
+    out, _ = sim.communicate(timeout=10)
+    assert "no valid commands" in out and "(startup_timeout_s): the clock starts on the failsafe" in out, out
 
 
 def test_lockstep_timeout_holds_commands_and_resumes(bench):
@@ -375,7 +410,7 @@ def test_lockstep_run_ends_only_once_the_recorder_holds_its_final_step(bench):
 @pytest.mark.parametrize("case", ["params_yaml", "params_type", "params_choice", "params_priority", "mission_yaml",
                                   "mission_key", "mission_missing", "no_mission"])
 def test_malformed_params_or_mission_exit_nonzero(tmp_path, case):
-    domain_id = random.randint(100, 230)
+    domain_id = claimed_domain()
     good = tmp_path / "good.yaml"
     good.write_text(MISSION)
     args: list[str]

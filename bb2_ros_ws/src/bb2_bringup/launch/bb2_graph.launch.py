@@ -20,7 +20,8 @@ It starts what ``bb2-launch`` starts — simulator, planner, path_following, l1_
 recorder, each its own process, the recorder and the planner at nice +10 — with the same parameters: the
 params file, then the mission, the time mode, use_sim_time (the simulator is the clock) and, with a recorder,
 ``wait_for_readers`` (the bag misses nothing from the first step) and in lockstep ``recorder_ack_window`` (the graph
-waits for a stalled recorder rather than lose messages).  The simulator ends the run where bb2-launch does (the
+waits for a stalled recorder rather than lose messages), in real time ``wait_for_commands`` (the clock starts once
+the controllers answer, not on the start-up failsafe).  The simulator ends the run where bb2-launch does (the
 mission duration, or ``end_at_progress``: the path flown) and exits; its exit stops the whole launch (the
 recorder finishes its bag on the SIGINT).  Ctrl-C stops every node cleanly.  With ``compose:=true`` the same nodes
 with the same arguments run in one ``container`` process (each node's ROS arguments apply to it alone), whose
@@ -158,7 +159,7 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
         actions.append(node("bb2_tools", "foxglove_bridge", {"port": int(foxglove_port), "use_sim_time": True},
                             background=True))
     sim_values = {"use_sim_time": False, "time_mode": time_mode, "exit_at_end": True, "end_at_progress": True,
-                  "wait_for_readers": record,
+                  "wait_for_readers": record, "wait_for_commands": time_mode == "realtime",
                   "recorder_ack_window": RECORDER_ACK_WINDOW if record and time_mode == "lockstep" else 0}
     controllers = [("planner", True), ("path_following", False), ("l1_autopilot", False), ("mixer", False)]
     if compose:
