@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
-from scipy import linalg, signal
+from scipy import linalg
 
 from bb2_control.errors import ControlConfigError, NonFiniteInputError
 
@@ -161,6 +161,8 @@ def design_channel(
         L1DesignError: on any violated design assumption (A_m not Hurwitz, C(0) != 1, C not strictly
             proper or unstable, O(s) improper, realisation not matching M_tf, Ts <= 0).
     """
+    from scipy import signal  # here, not at import: scipy.signal costs a process ~0.8 s
+
     Ts = float(Ts)
     if not np.isfinite(Ts) or Ts <= 0:
         raise L1DesignError(f"Ts must be a positive number of seconds, got {Ts!r}")

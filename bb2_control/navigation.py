@@ -54,7 +54,6 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 import numpy as np
-from scipy.stats import chi2
 
 from bb2_control.config import DATA_DIR, load_mapping, require
 from bb2_control.errors import ControlConfigError
@@ -157,6 +156,8 @@ class NavigationFilter:
         self._q_accel = acc.noise_density ** 2 + s.extra_accel_noise ** 2          # m^2/s^3
         self._tilt_q = np.array([1.0, 1.0, 0.0]) * (self.g * imu.ahrs.roll_pitch_noise) ** 2  # (m/s^2)^2/sample
         self._q_bias = acc.bias_random_walk ** 2                                    # m^2/s^5
+        from scipy.stats import chi2  # here, not at import: scipy.stats costs a process ~0.6 s
+
         self._gate = {n: float(chi2.ppf(s.gate_probability, n)) for n in (1, 3)}
         self.stats = NavigationStats()
 

@@ -37,7 +37,6 @@ from functools import lru_cache
 from typing import Sequence
 
 import numpy as np
-from scipy import special  # scipy.stats / scipy.optimize are imported where used (0.25 s per process)
 
 from bb2_sim import frames as _frames
 
@@ -140,6 +139,8 @@ def derivative_points(c: np.ndarray, span: float = 1.0) -> np.ndarray:
 
 def elevate_points(c: np.ndarray, r: int = 1) -> np.ndarray:
     """Degree elevation by ``r``: same curve, degree n+r.  Weights C(n,i) C(r,k-i) / C(n+r,k)."""
+    from scipy import special  # here, not at import: scipy.special costs every process ~0.3 s
+
     c = _as_points(c)
     if r < 0:
         raise ValueError(f"degree elevation must be >= 0, got {r}")
@@ -169,6 +170,8 @@ def product_points(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     ``e_k = sum_{i+j=k} C(m,i) C(n,j) / C(m+n,k) a_i b_j``.  Both on the same span.
     """
+    from scipy import special  # here, not at import: scipy.special costs every process ~0.3 s
+
     a, b = _as_points(a), _as_points(b)
     m, n = a.shape[0] - 1, b.shape[0] - 1
     wa = special.comb(m, np.arange(m + 1))[:, None] * a
@@ -189,6 +192,8 @@ def gram_matrix(n: int, span: float = 1.0) -> np.ndarray:
 
     So ``int |p|^2 dt = sum_d c[:, d] @ G @ c[:, d]``.
     """
+    from scipy import special  # here, not at import: scipy.special costs every process ~0.3 s
+
     i = np.arange(n + 1)
     ci = special.comb(n, i)
     return span * np.outer(ci, ci) / special.comb(2 * n, i[:, None] + i[None, :]) / (2 * n + 1)
@@ -258,6 +263,8 @@ class PathPoint:
 @lru_cache(maxsize=16)
 def _gauss_legendre(nodes: int) -> tuple[np.ndarray, np.ndarray]:
     """Gauss-Legendre nodes and weights on [-1, 1] (cached: the path follower asks every tick)."""
+    from scipy import special  # here, not at import: scipy.special costs every process ~0.3 s
+
     return special.roots_legendre(nodes)
 
 

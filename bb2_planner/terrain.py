@@ -25,8 +25,6 @@ from typing import Any
 
 import numpy as np
 import yaml
-from scipy import interpolate, ndimage, sparse, spatial
-from scipy.sparse import csgraph
 
 from bb2_planner.bernstein import BernsteinPath, fit_control_points
 
@@ -67,6 +65,8 @@ class Terrain:
 
     def __init__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, name: str = "",
                  provenance: dict[str, Any] | None = None):
+        from scipy import interpolate
+
         x = np.asarray(x, dtype=float)
         y = np.asarray(y, dtype=float)
         z = np.asarray(z, dtype=float)
@@ -287,6 +287,8 @@ def synthetic_canyon(params: dict[str, Any] | str | Path | None = None) -> Synth
     with ``floor(s)`` linear from ``elevation_start_m`` to ``elevation_end_m`` along the core and a
     smooth Gaussian-filtered noise field of standard deviation ``amplitude_m`` (numpy seed ``seed``).
     """
+    from scipy import ndimage, spatial
+
     p = params if isinstance(params, dict) else load_canyon_parameters(params)
     cl, fl, wl, nz, gr = p["centreline"], p["floor"], p["walls"], p["noise"], p["grid"]
     line, s_start, s_end = _centreline(cl)
@@ -331,6 +333,9 @@ def _grid_index(terrain: Terrain, xy: np.ndarray) -> tuple[int, int]:
 
 def _least_cost_route(terrain: Terrain, a: np.ndarray, b: np.ndarray, steepness: float) -> np.ndarray:
     """Dijkstra route over the 8-connected grid; edge cost = length * (1 + steepness * rel. height)^2."""
+    from scipy import sparse
+    from scipy.sparse import csgraph
+
     nx, ny = terrain.z.shape
     zr = (terrain.z - terrain.z.min()) / max(np.ptp(terrain.z), 1e-9)
     w = (1.0 + steepness * zr) ** 2
@@ -372,6 +377,8 @@ def _resample(xy: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _smooth(xy: np.ndarray, sigma_pts: float) -> np.ndarray:
     """Gaussian smoothing along the line with the ends held (reflect about the end points)."""
+    from scipy import ndimage
+
     if sigma_pts <= 0:
         return xy
     pad = int(np.ceil(4 * sigma_pts))
@@ -428,6 +435,8 @@ def thalweg_path(terrain: Terrain, start_xy: np.ndarray, end_xy: np.ndarray, *, 
     :class:`PathBelowTerrainError` if the path comes within ``min_clearance_m`` of the terrain, and
     :class:`TerrainError` if it rises above ``max_elevation_m`` (e.g. the ROM's validity limit).
     """
+    from scipy import ndimage
+
     th = thalweg if thalweg is not None else extract_thalweg(terrain, start_xy, end_xy)
     step = th.s[-1] / (len(th.s) - 1)
     # lower envelope of the floor over a window, then smooth it: never above the local floor minimum

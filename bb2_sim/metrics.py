@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-from scipy import optimize
 
 from bb2_sim.parameters import RomParameters, load_parameters
 
@@ -253,6 +252,8 @@ def _fit_circle(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, floa
 
     def residual(p: np.ndarray) -> np.ndarray:
         return np.hypot(x - p[0], y - p[1]) - p[2]
+
+    from scipy import optimize  # here, not at import (scipy.optimize costs a process ~0.4 s)
 
     sol = optimize.least_squares(residual, [a, b, r0], method="lm", xtol=1e-14, ftol=1e-14)
     xc, yc, R = sol.x

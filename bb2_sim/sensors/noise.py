@@ -18,8 +18,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import lfilter
-from scipy.special import ndtr
 
 __all__ = ["RandomWalk", "GaussMarkov", "uniform_from_normal", "stream"]
 
@@ -32,6 +30,8 @@ def stream(seed: int, sensor_index: int, purpose: int) -> np.random.Generator:
 
 def uniform_from_normal(w: np.ndarray) -> np.ndarray:
     """U(0, 1) from standard normals (their CDF)."""
+    from scipy.special import ndtr  # here, not at import: scipy.special costs every node ~0.3 s at start
+
     return ndtr(w)
 
 
@@ -64,6 +64,8 @@ class GaussMarkov:
     def run(self, w: np.ndarray) -> np.ndarray:
         if w.shape[0] == 0:
             return np.empty((0,) + self.b.shape)
+        from scipy.signal import lfilter  # here, not at import: scipy.signal costs every node ~0.8 s at start
+
         out, _ = lfilter([self.c], [1.0, -self.a], w, axis=0, zi=(self.a * self.b)[None, :])
         self.b = out[-1].copy()
         return out
