@@ -37,7 +37,7 @@ case "$cmd" in
   main)  setup; activate; exec python -m bb2_tools.main_job "$@" ;;
   test)  setup; bash tools/install_chromium.sh >&2 || true; activate
          echo "[run.sh] ruff check ." >&2; ruff check -q . || { echo "[run.sh] ruff check failed" >&2; exit 1; }
-         exec python -m pytest -q -p no:cacheprovider --durations=40 tests "$@" ;;
+         exec python -m pytest -q -p no:cacheprovider -n "${BB2_TEST_WORKERS:-2}" --dist loadfile --no-loadscope-reorder --durations=40 tests "$@" ;;
   lint)  setup; activate; exec ruff check . ;;
   bench) setup; activate; for b in benchmarks/*.py; do echo "== $b"; python "$b"; done ;;
   shell) setup; activate; exec "${SHELL:-bash}" ;;

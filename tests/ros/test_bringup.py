@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ros2_tooling import tooling_env, tooling_venv  # noqa: E402  (tests/ros2_tooling.py)
 from rosenv import library_trajectory, ros_env  # noqa: E402
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=130)]  # slow: started first (tests/conftest.py)
 REPO = Path(__file__).resolve().parents[2]
 WS = REPO / "bb2_ros_ws"
 

@@ -28,7 +28,7 @@ UP_TO = {  # each package and what it declares, transitively
     "bb2_bringup": set(ORDER),
 }
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=200)]  # slow: started first (tests/conftest.py)
 
 
 @pytest.fixture(scope="module")

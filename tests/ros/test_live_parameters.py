@@ -21,7 +21,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ros2_tooling import tooling_env, tooling_venv  # noqa: E402  (tests/ros2_tooling.py)
-from rosenv import ros_env  # noqa: E402
+from rosenv import claimed_domain, ros_env  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 MISSION = REPO / "missions" / "straight.yaml"
@@ -36,7 +36,7 @@ def simulator(tmp_path):
     argv = ["simulator", "--ros-args", "--params-file", str(params), "-p", f"mission_file:={MISSION}",
             "-p", "time_mode:=realtime", "-p", "realtime_priority:=0", "-p", "hold_cpu_dma_latency:=false"]
     ctx = rclpy.Context()
-    rclpy.init(args=argv, context=ctx, domain_id=229)
+    rclpy.init(args=argv, context=ctx, domain_id=claimed_domain())
     import bb2_ros.node_common as nc
 
     nc._node_argv = argv
@@ -131,7 +131,7 @@ def _sim_rate(ctx_node, seconds: float) -> float:
 def test_ros2_cli_on_a_running_simulator_params_qos_diagnostics(tmp_path):
     """ros2 param set/get/describe/dump; ros2 topic echo of /bb2/odom with a reliable and a best-effort
     subscription (issue 13 (6)) and of /diagnostics."""
-    domain = 228
+    domain = claimed_domain()
     env = tooling_env(tooling_venv(), ROS_DOMAIN_ID=str(domain))
     proc = subprocess.Popen([sys.executable, "-m", "bb2_ros.simulator", "--ros-args",
                              "-p", f"mission_file:={MISSION}", "-p", "time_mode:=realtime", "-p", "rate_hz:=20.0",

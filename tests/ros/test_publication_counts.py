@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -46,7 +46,7 @@ def test_a_node_process_writes_what_it_published_as_it_exits(tmp_path, code):
     pytest.importorskip("rclpy")
     from bb2_ros.node_common import PUBLISHED_DIR_ENV
 
-    env = ros_env(domain_id=231)
+    env = ros_env(domain_id=claimed_domain())
     env[PUBLISHED_DIR_ENV] = str(tmp_path / "published")
     p = subprocess.run([sys.executable, "-c", SCRIPT, str(code)], cwd=REPO, env=env, capture_output=True, text=True,
                        timeout=60)

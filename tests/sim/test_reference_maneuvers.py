@@ -11,6 +11,8 @@ from bb2_sim.maneuvers import CSV_COLUMNS, build_model, maneuver_settings, run_m
 from bb2_sim.metrics import figures_for
 from bb2_sim.model import BB2Model
 
+pytestmark = pytest.mark.slow(seconds=110)  # started first (tests/conftest.py)
+
 CASES = [
     ("self-propulsion", "ref_sp_calm", {}),
     ("turning-circle", "ref_tc20", {}),

@@ -31,6 +31,8 @@ import pyarrow.parquet as pq  # noqa: E402
 from bb2_tools.campaign import cli  # noqa: E402
 from bb2_tools.campaign.spec import parse_spec  # noqa: E402
 
+pytestmark = pytest.mark.slow(seconds=150)  # started first (tests/conftest.py)
+
 REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
 

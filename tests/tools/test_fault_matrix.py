@@ -35,7 +35,7 @@ REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable
 TS = 0.05  # the ROM's step, s
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=300)]  # slow: started first (tests/conftest.py)
 
 NODES = ("simulator", "planner", "path_following", "l1_autopilot", "mixer")
 CONTROLLERS = ("path_following", "l1_autopilot", "mixer")

@@ -28,6 +28,8 @@ from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 
+pytestmark = pytest.mark.slow(seconds=150)  # started first (tests/conftest.py)
+
 FAKE_NODE = r'''
 """Throwaway rclpy node: ticks at 50 Hz, optionally publishes /clock and mission progress,
 optionally crashes; writes <name>.pid / .attempts / .clean into --dir."""

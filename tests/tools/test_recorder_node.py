@@ -17,7 +17,7 @@ pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ros2_tooling import tooling_env, tooling_venv  # noqa: E402  (tests/ros2_tooling.py)
-from rosenv import ros_env  # noqa: E402
+from rosenv import claimed_domain, ros_env  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -33,7 +33,7 @@ def _ros2_found(cmd, env, timeout_s: float = 60.0):
 
 
 def test_recorder_parameters_and_parameter_services(tmp_path):
-    domain = 227
+    domain = claimed_domain()
     env = tooling_env(tooling_venv(), ROS_DOMAIN_ID=str(domain))
     bag = tmp_path / "bag"
     params = tmp_path / "rec.yaml"
@@ -80,7 +80,7 @@ def test_recorder_refuses_bad_storage_parameters_with_one_line(tmp_path):
                       (["-p", "batch_period_s:=5.0"], "batch period"), (["-p", "topics:=[/bb2/nothing]"],
                                                                         "matches no contract topic")):
         r = subprocess.run([sys.executable, "-m", "bb2_tools.recorder", "--ros-args",
-                            "-p", f"bag_directory:={tmp_path / 'b'}", *args], cwd=tmp_path, env=ros_env(226),
+                            "-p", f"bag_directory:={tmp_path / 'b'}", *args], cwd=tmp_path, env=ros_env(claimed_domain()),
                            capture_output=True, text=True, timeout=60)
         assert r.returncode == 2 and why in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
         assert not (tmp_path / "b").exists()

@@ -31,7 +31,7 @@ PY = sys.executable
 H_NS = 50_000_000  # the missions' step, 0.05 s
 T_CANYON_S = 240
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=190)]  # slow: started first (tests/conftest.py)
 
 # topics with one message per step (stamped t_0 .. t_N, or t_0 .. t_N-1 for what follows a step's integration)
 STATE_TOPICS = ("/bb2/state_native", "/bb2/odom", "/bb2/depth", "/bb2/altitude", "/bb2/guidance/rate_cmd",
