@@ -42,9 +42,11 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.substitutions import ExecutableInPackage
 
+from bb2_msgs_py.contract import GLOBAL_TOPICS
+
 SHARE = Path(get_package_share_directory("bb2_bringup"))
-NOT_REMAPPED = ("/diagnostics", "/tf")  # the standard diagnostics topic is global (a boat's recorder leaves it
-# out: bb2_msgs_py.contract.GLOBAL_TOPICS); /tf is written into bags only
+NOT_REMAPPED = (*GLOBAL_TOPICS, "/tf")  # the standard diagnostics topic is every boat's (a boat's recorder leaves
+# it out); /tf is written into bags only
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
 RECORDER_ACK_WINDOW = 10  # bb2_tools.launcher.RECORDER_ACK_WINDOW: steps the simulator may run ahead of the recorder
 
