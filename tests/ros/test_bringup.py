@@ -21,7 +21,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ros2_tooling import tooling_env, tooling_venv  # noqa: E402  (tests/ros2_tooling.py)
-from rosenv import library_trajectory, ros_env  # noqa: E402
+from rosenv import claimed_domain, library_trajectory, ros_env  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=130)]  # slow: started first (tests/conftest.py)
 REPO = Path(__file__).resolve().parents[2]
@@ -76,7 +76,7 @@ def finish(p: subprocess.Popen, timeout: float) -> str:
 
 def test_ros2_launch_flies_a_mission_in_lockstep_and_records_the_bag_of_bb2_launch(ws):
     env, install, tmp = ws
-    p = launch(ws, 214, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "time_mode:=lockstep",
+    p = launch(ws, claimed_domain(), "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "time_mode:=lockstep",
                "record:=true", f"bag:={tmp / 'launched'}")
     out = finish(p, 180)
     assert p.returncode == 0, out[-3000:]
@@ -103,7 +103,7 @@ def test_ros2_launch_compose_true_runs_the_nodes_in_one_container_and_flies_the_
     with socket.socket() as s:  # and foxglove:=true: the live Foxglove bridge beside them, on a free port
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    p = launch(ws, 216, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "compose:=true",
+    p = launch(ws, claimed_domain(), "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "compose:=true",
                f"bag:={tmp / 'composed'}", "foxglove:=true", f"foxglove_port:={port}")
     out = finish(p, 180)
     assert p.returncode == 0, out[-3000:]
@@ -121,7 +121,7 @@ def test_ros2_launch_compose_true_runs_the_nodes_in_one_container_and_flies_the_
 
 def test_ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished(ws):
     env, install, tmp = ws
-    p = launch(ws, 215, "bb2_graph.launch.py", "mission:=canyon", f"bag:={tmp / 'interrupted'}")
+    p = launch(ws, claimed_domain(), "bb2_graph.launch.py", "mission:=canyon", f"bag:={tmp / 'interrupted'}")
     t0 = time.monotonic()
     seen = []
     for line in p.stdout:  # running: the path follower is ready and the simulator steps
@@ -147,9 +147,10 @@ def test_ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished(ws):
 def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):
     env, install, tmp = ws
     solo = tmp / "solo"
-    p = launch(ws, 216, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", f"bag:={solo}")
+    domain = claimed_domain()  # the solo graph's, then the fleet's: the fleet must not see its topics either
+    p = launch(ws, domain, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", f"bag:={solo}")
     assert finish(p, 180) and p.returncode == 0
-    p = launch(ws, 216, "fleet.launch.py", "boats:=boat1,boat2",
+    p = launch(ws, domain, "fleet.launch.py", "boats:=boat1,boat2",
                f"missions:={tmp / 'short.yaml'},{tmp / 'short_straight.yaml'}", f"bag_dir:={tmp / 'fleet'}")
     out = finish(p, 240)
     assert p.returncode == 0 and "2 of 2 boats done" in out, out[-3000:]

@@ -12,6 +12,8 @@ import pytest
 
 from bb2_msgs_py.ros_env import RosEnvironmentError, ensure_ros_environment
 
+from rosenv import claimed_domain  # noqa: E402  (tests/rosenv.py)
+
 REPO = Path(__file__).resolve().parents[2]
 VENV_BIN = Path(sys.prefix) / "bin"
 
@@ -55,7 +57,7 @@ def test_console_scripts_run_directly_from_the_venv(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     assert (tmp_path / "an" / "report.html").is_file()
     r = subprocess.run([str(VENV_BIN / "bb2-replay"), str(tmp_path / "run"), "--rate", "50", "--topics",
-                        "/bb2/mission/progress"], cwd=tmp_path, env=bare_env(ROS_DOMAIN_ID="231"),
+                        "/bb2/mission/progress"], cwd=tmp_path, env=bare_env(ROS_DOMAIN_ID=str(claimed_domain())),
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-3000:]
     assert "published" in r.stderr + r.stdout
@@ -65,7 +67,7 @@ def test_console_scripts_run_directly_from_the_venv(tmp_path):
     r = subprocess.run([str(exe), "--ros-args", "-p", f"mission_file:={REPO / 'missions' / 'canyon.yaml'}",
                         "-p", "time_mode:=realtime", "-p", "rate_hz:=200.0", "-p", "duration_s:=0.5",
                         "-p", "exit_at_end:=true", "-p", "realtime_priority:=0", "-p", "hold_cpu_dma_latency:=false"],
-                       cwd=tmp_path, env=bare_env(ROS_DOMAIN_ID="231"), capture_output=True, text=True, timeout=120)
+                       cwd=tmp_path, env=bare_env(ROS_DOMAIN_ID=str(claimed_domain())), capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-3000:]
     assert "mission duration reached" in r.stderr + r.stdout
 

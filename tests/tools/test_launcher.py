@@ -9,7 +9,6 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
-import random
 import re
 import signal
 import subprocess
@@ -24,7 +23,7 @@ from bb2_tools import graph_monitor as M
 from bb2_tools import launcher as L
 from bb2_tools import supervisor as S
 
-from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -313,7 +312,7 @@ def graph(tmp_path):
     pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
     (tmp_path / "fake_node.py").write_text(FAKE_NODE)
     (tmp_path / "drive.py").write_text(DRIVER)
-    domain = random.randint(150, 230)
+    domain = claimed_domain()
     env = dict(os.environ)
     env["ROS_DOMAIN_ID"] = str(domain)
     env["AMENT_PREFIX_PATH"] = env.get("AMENT_PREFIX_PATH") or sys.prefix

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 
-import random
 import signal
 import subprocess
 import sys
@@ -24,7 +23,7 @@ from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 from bb2_sim.state import VehicleState  # noqa: E402
 from bb2_tools.bagfile import BagReader, recover  # noqa: E402
 
-from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 N_ODOM, N_CMD = 60, 20
@@ -43,7 +42,7 @@ SIM_T0 = 1000.0  # /clock published before the data: log times must be sim time
 
 @pytest.fixture(scope="module")
 def domain_id() -> int:
-    return random.randint(100, 200)
+    return claimed_domain()
 
 
 def _start_recorder(out: Path, domain_id: int, *extra: str) -> subprocess.Popen:
