@@ -82,7 +82,9 @@ class Probe:
             time.sleep(0.05)
         raise AssertionError(f"timed out waiting for {what}")
 
-    def wait_subscribed(self, name: str, proc, timeout: float = 20.0) -> None:
+    def wait_subscribed(self, name: str, proc, timeout: float = 60.0) -> None:
+        # (a node's start-up: its imports and its mission's pieces; over 20 s seen on two test workers beside two
+        # CPU hogs)
         self.wait(lambda: self.node.count_subscribers(name) > 0, timeout, f"a subscriber of {name}", proc)
 
     def close(self) -> None:
