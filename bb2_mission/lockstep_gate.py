@@ -325,6 +325,26 @@ class LockstepGate:
         return planes, rps, f"{pw}, {rw}"
 
     # -- real time
+    @property
+    def has_commands(self) -> bool:
+        """Valid plane and propeller commands have come (the controllers are up)."""
+        return self.planes_deg is not None and self.rps is not None
+
+    def state_age_s(self, wall: float) -> float:
+        """Wall seconds since the current state first went out."""
+        return wall - self._first_sent_wall
+
+    def first_commands(self, wall: float) -> WatchdogAction:
+        """Real time with ``wait_for_commands``, the first state out and the clock not started: STEP (start the
+        clock) once valid commands have come or ``startup_timeout_s`` after the first state (then on the failsafe);
+        RESEND it every ``lockstep_retry_s`` meanwhile, for controllers that match it late."""
+        if self.has_commands or self.state_age_s(wall) >= self.timings.startup_timeout_s:
+            return WatchdogAction.STEP
+        if wall - self._sent_wall >= self.timings.lockstep_retry_s:
+            self.state_resent(wall)
+            return WatchdogAction.RESEND
+        return WatchdogAction.NONE
+
     def realtime_commands(self, wall: float) -> StepDecision:
         """Real time, at a tick: the commands to step with, failsafe engaged when they are stale."""
         limit = self.timings.command_timeout_s

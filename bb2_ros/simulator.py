@@ -218,12 +218,10 @@ class Simulator(Node):
         self.min_state_subscribers = int(P("min_state_subscribers", 0,
                                            "wait for this many /bb2/state_native readers before the first step"))
         self._readers_since: float | None = None
-        self._awaiting_commands = bool(P(
+        self._awaiting_commands = self.time_mode is TimeMode.REALTIME and bool(P(
             "wait_for_commands", False, "real time: start the clock (the first deadline) only once valid plane and "
             "propeller commands answer the first state (re-sent every lockstep_retry_s), at most startup_timeout_s; "
             "false = step on the failsafe from the first tick until they come (bb2-launch sets it)"))
-        self._awaiting_commands = self._awaiting_commands and self.time_mode is TimeMode.REALTIME
-        self._first_state_wall = self._resent_wall = 0.0
         self.wait_for_readers = bool(P("wait_for_readers", False,
                                        "publish the first state only once every topic published here has a "
                                        "reader (a recorder), at most startup_timeout_s"))
@@ -489,8 +487,8 @@ class Simulator(Node):
             self.warn.warn("start_readers", f"starting after {waited:.1f} s: "
                            + (f"no reader of {', '.join(unread)}" if unread else "the readers still matching"))
         self.start_timer.cancel()
-        self._next_tick = self._first_state_wall = self._resent_wall = time.monotonic()  # before `started`: the
-        self.started = True                                 # real-time thread reads them unlocked
+        self._next_tick = time.monotonic()  # before `started`: the real-time thread reads both unlocked
+        self.started = True
         self._publish_state()
 
     def _watchdog(self) -> None:
@@ -532,24 +530,23 @@ class Simulator(Node):
             self.pub["/bb2/odom"].publish(self._odom_msg)  # for controllers on state_source odometry
 
     def _first_commands_in(self) -> bool:
-        """Real time with ``wait_for_commands``, before the first deadline: whether the clock may start (valid
-        plane and propeller commands have come, or ``startup_timeout_s`` passed: then a warning, and the run
-        starts on the failsafe as without the wait); meanwhile the state at t = 0 is re-sent every
-        ``lockstep_retry_s``, for controllers that match it late."""
+        """Real time with ``wait_for_commands``, before the first deadline: whether the clock may start (the gate's
+        :meth:`first_commands`: valid commands have come, or ``startup_timeout_s`` passed: then a warning, and the
+        run starts on the failsafe as without the wait); meanwhile the state at t = 0 is re-sent."""
         now = time.monotonic()
-        if self.gate.planes_deg is not None and self.gate.rps is not None:
-            self.get_logger().info(f"real time: the controllers answered the first state after "
-                                   f"{now - self._first_state_wall:.1f} s: the clock starts")
-            return True
-        if now - self._first_state_wall >= self.gate.timings.startup_timeout_s:
-            self.warn.warn("start_commands", f"real time: no valid commands {now - self._first_state_wall:.1f} s "
-                                             "after the first state (startup_timeout_s): the clock starts on the "
-                                             "failsafe")
-            return True
-        if now - self._resent_wall >= self.gate.timings.lockstep_retry_s:
-            self._resent_wall = now
+        action = self.gate.first_commands(now)
+        if action is WatchdogAction.RESEND:
             self._resend_state()
-        return False
+        if action is not WatchdogAction.STEP:
+            return False
+        waited = self.gate.state_age_s(now)
+        if self.gate.has_commands:
+            self.get_logger().info(f"real time: the controllers answered the first state after {waited:.1f} s: "
+                                   "the clock starts")
+        else:
+            self.warn.warn("start_commands", f"real time: no valid commands {waited:.1f} s after the first state "
+                                             "(startup_timeout_s): the clock starts on the failsafe")
+        return True
 
     def _realtime_loop(self) -> None:
         """Real time: step at ``rate_hz`` on absolute monotonic deadlines (sleeps to the next deadline; a

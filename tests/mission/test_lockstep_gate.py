@@ -227,3 +227,20 @@ def test_recorder_ack_gives_a_silent_recorder_up_after_its_timeout_until_it_ackn
     assert a.may_step(50 * h, 31.0)                      # steps go without it
     a.on_ack(49 * h)                                     # it is back: the window holds again
     assert not a.given_up and a.may_step(51 * h, 32.0) and not a.may_step(52 * h, 32.1)
+
+
+def test_real_time_first_commands_start_the_clock_resending_the_first_state_meanwhile():
+    g = gate(TimeMode.REALTIME, startup_timeout_s=2.0)
+    g.state_sent(10.0)  # the first state goes out at wall 10 s
+    assert g.first_commands(10.05) is WatchdogAction.NONE
+    assert g.first_commands(10.11) is WatchdogAction.RESEND and g.first_commands(10.15) is WatchdogAction.NONE
+    assert g.first_commands(10.22) is WatchdogAction.RESEND and not g.has_commands
+    g.on_planes(PLANES, planes_rad(0, 0, 0, 0, 0), FRAME, 0, 0, 10.25)
+    assert g.first_commands(10.25) is WatchdogAction.NONE   # the planes alone do not start it
+    g.on_propeller([PROP], [2 * math.pi], FRAME, 0, 0, 10.3)
+    assert g.has_commands and g.first_commands(10.3) is WatchdogAction.STEP
+    assert g.state_age_s(10.3) == pytest.approx(0.3)
+    late = gate(TimeMode.REALTIME, startup_timeout_s=2.0)
+    late.state_sent(10.0)
+    assert late.first_commands(11.99) is WatchdogAction.RESEND   # none in time: the clock starts on the failsafe
+    assert late.first_commands(12.0) is WatchdogAction.STEP and not late.has_commands
