@@ -217,11 +217,12 @@ class StepAcks:
 
     def received(self, topic: str, stamp_ns: int) -> None:
         newest = self.newest_ns.get(topic)
-        if topic == STATE_TOPIC and newest is not None and stamp_ns > newest:
+        if newest is not None and stamp_ns <= newest:
+            return
+        if topic == STATE_TOPIC and newest is not None:
             d = int(stamp_ns) - newest
             self.step_ns = d if self.step_ns is None else min(self.step_ns, d)
-        if stamp_ns > self.newest_ns.get(topic, -1):
-            self.newest_ns[topic] = int(stamp_ns)
+        self.newest_ns[topic] = int(stamp_ns)
 
     def _step_of(self, topic: str, stamp_ns: int) -> int:
         return stamp_ns + self.step_ns if topic in STEP_START_TOPICS and self.step_ns is not None else stamp_ns
