@@ -116,7 +116,8 @@ def claimed_domain() -> int:
 
     from bb2_tools.graph_monitor import claim_domain
 
-    for d in random.sample(range(102, 233), 131):
+    ids = range(102, 233)
+    for d in random.sample(ids, len(ids)):
         fd = claim_domain(d)
         if fd is not None:
             _domain_claims.append(fd)
