@@ -23,6 +23,9 @@ controller twice); after ``lockstep_timeout_s`` the simulator steps on held comm
 ``/bb2/status``.  ``/bb2/state_native`` carries the ROM state in float64 as it is, so the controllers see
 exactly the numbers the library runner's stack sees (no quaternion -> Euler rounding).
 
+Names: the nodes name every topic relative to their namespace (:func:`node_topic_name`: ``bb2/odom``), so the
+contract's ``/bb2/...`` names are those of the root namespace and a boat started in ``/boat1`` uses
+``/boat1/bb2/...``; ``/clock``, ``/diagnostics`` and the tf topics stay absolute (:data:`ABSOLUTE_TOPICS`).
 Remapping is the standard ROS 2 one (``--ros-args -r /bb2/odom:=/other``); a rule that names no topic of a
 node is reported by the node (an error with its parameter ``strict_remaps: true``).
 """
@@ -73,6 +76,35 @@ path_frenet, the sensors' frames) are the vehicle's own."""
 GLOBAL_TOPICS = ("/diagnostics",)
 """Contract topics every vehicle of a graph shares (never under a boat's namespace): the standard diagnostics topic
 carries the statuses of every node of every boat (each also on its boat's ``bb2/status``)."""
+
+
+RECORDER_ACK_WINDOW = 10
+"""Steps a lockstep simulator with a recorder may run ahead of the recorder's acknowledgement (its parameter
+``recorder_ack_window``, as ``bb2-launch`` and the launch files set it): a stalled recorder stops the graph within
+half a second of sim time, far inside every writer's history (:data:`QOS`: keep last 100)."""
+
+ABSOLUTE_TOPICS = ("/clock", *GLOBAL_TOPICS, "/tf", "/tf_static")
+"""Topics a node names absolutely, whatever its namespace: ``/clock`` (rclpy's time source reads ``/clock``; a boat
+with a clock of its own remaps it: ``-r /clock:=/boat1/clock``), the global topics, and the tf topics (one tree for
+every vehicle, their frames prefixed: :func:`frame_prefix`)."""
+
+
+def node_topic_name(name: str) -> str:
+    """The name a node creates contract topic ``name`` under: relative to the node's namespace (``bb2/odom``), so
+    that in the root namespace it is the contract's ``/bb2/odom`` and a node started in ``/boat1``
+    (``--ros-args -r __ns:=/boat1``) reads and writes ``/boat1/bb2/odom``; :data:`ABSOLUTE_TOPICS` stay absolute.
+    A remap rule names the resolved topic (``-r /bb2/odom:=/other`` in the root namespace)."""
+    return name if name in ABSOLUTE_TOPICS or not name.startswith("/") else name[1:]
+
+
+def boat_topic(name: str, namespace: str) -> str:
+    """The resolved name of contract topic ``name`` for a boat whose nodes run in ``namespace`` with a clock of its
+    own (``bb2-launch --namespace``, the launch files' ``namespace``): ``/boat1/bb2/odom``, ``/boat1/clock``; the
+    global and tf topics (:data:`ABSOLUTE_TOPICS` but ``/clock``) and every name in the root namespace unchanged."""
+    ns = namespace.strip("/")
+    if not ns or (name in ABSOLUTE_TOPICS and name != "/clock"):
+        return name
+    return f"/{ns}{name}"
 
 
 def frame_prefix(namespace: str) -> str:

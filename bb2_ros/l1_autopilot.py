@@ -24,7 +24,7 @@ from rclpy.node import Node
 from bb2_control.errors import NonFiniteInputError
 from bb2_control.path_following import flow_to_body_rates
 from bb2_msgs_py import conversions as cv
-from bb2_msgs_py.contract import FRAME_BASE_LINK, message_class, qos_profile
+from bb2_msgs_py.contract import FRAME_BASE_LINK, message_class, node_topic_name, qos_profile
 
 from bb2_mission.components import build_mission_stack
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
@@ -58,7 +58,7 @@ class L1Autopilot(Node):
         self.counts = {"answered": 0, "replayed": 0, "rejected": 0, "errors": 0}
         self.pub = {n: contract_publisher(node, n) for n in TOPICS[3:5]}
         self.sub_rate = node.create_subscription(message_class("geometry_msgs/msg/Vector3Stamped"),
-                                                 "/bb2/guidance/rate_cmd", self._on_rate,
+                                                 node_topic_name("/bb2/guidance/rate_cmd"), self._on_rate,
                                                  qos_profile("/bb2/guidance/rate_cmd", reader=True))
         self.sub_state = subscribe_state(node, source, self._on_state, state_topic(self.mission))
         self.status = NodeStatus(node, "bb2/l1_autopilot", period, lambda: {

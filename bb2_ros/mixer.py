@@ -17,7 +17,7 @@ from rclpy.node import Node
 
 from bb2_control.errors import NonFiniteInputError
 from bb2_msgs_py import conversions as cv
-from bb2_msgs_py.contract import FRAME_BASE_LINK, message_class, qos_profile
+from bb2_msgs_py.contract import FRAME_BASE_LINK, message_class, node_topic_name, qos_profile
 
 from bb2_mission.components import build_mixer
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
@@ -41,8 +41,9 @@ class Mixer(Node):
         self.cache = StampedCache()
         self.counts = {"answered": 0, "replayed": 0, "rejected": 0}
         self.pub = contract_publisher(node, "/bb2/planes/cmd")
-        self.sub = node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/autopilot/vh_cmd",
-                                            self._on_vh, qos_profile("/bb2/autopilot/vh_cmd", reader=True))
+        self.sub = node.create_subscription(message_class("sensor_msgs/msg/JointState"),
+                                            node_topic_name("/bb2/autopilot/vh_cmd"), self._on_vh,
+                                            qos_profile("/bb2/autopilot/vh_cmd", reader=True))
         self.status = NodeStatus(node, "bb2/mixer", period, lambda: {
             "mission": self.mission.name, **{k: str(v) for k, v in self.counts.items()}})
 

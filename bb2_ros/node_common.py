@@ -259,8 +259,12 @@ def check_remaps(node, argv: Sequence[str], topics: Iterable[str], *, strict: bo
 
     Returns the messages; with ``strict`` raises :class:`NodeConfigError` instead.
     """
+    from bb2_msgs_py.contract import node_topic_name
+
     known = set(topics) | {"/clock", "/diagnostics"}  # every node may use sim time and publishes diagnostics
-    known |= {t.lstrip("/") for t in known}
+    ns = node.get_namespace().rstrip("/")  # the names the node's topics resolve to in its namespace
+    known |= {t.lstrip("/") for t in known} | {f"{ns}/{node_topic_name(t)}" for t in known
+                                               if not node_topic_name(t).startswith("/")}
     bad = []
     for target, lhs, rhs in remap_rules(argv):
         if target is not None and target != node.get_name():
@@ -435,10 +439,10 @@ def counting_publisher_class():
 def contract_publisher(node, name: str, msg_type=None):
     """A publisher of contract topic ``name`` on ``node``: the contract's type (or ``msg_type``) and QoS,
     counting what it publishes (:func:`counting_publisher_class`)."""
-    from bb2_msgs_py.contract import message_class, qos_profile, topic
+    from bb2_msgs_py.contract import message_class, node_topic_name, qos_profile, topic
 
-    return node.create_publisher(msg_type if msg_type is not None else message_class(topic(name).type), name,
-                                 qos_profile(name), publisher_class=counting_publisher_class())
+    return node.create_publisher(msg_type if msg_type is not None else message_class(topic(name).type),
+                                 node_topic_name(name), qos_profile(name), publisher_class=counting_publisher_class())
 
 
 def publication_counts(nodes) -> dict[str, int]:
@@ -673,7 +677,7 @@ def subscribe_state(node, source: str, callback: Callable[[Any, int], None], nat
     (REP-103, sensor QoS, quaternion -> Euler rounding; for external tools / HIL: the truth, so refused with a
     navigation estimate).  ``callback(state: VehicleState, stamp_ns)``."""
     from bb2_msgs_py import conversions as cv
-    from bb2_msgs_py.contract import message_class, qos_profile
+    from bb2_msgs_py.contract import message_class, node_topic_name, qos_profile
 
     native = StateSource(require_choice("state_source", source, STATE_SOURCES)) is StateSource.NATIVE
     if not native and native_topic != "/bb2/state_native":
@@ -687,8 +691,9 @@ def subscribe_state(node, source: str, callback: Callable[[Any, int], None], nat
                 node.get_logger().warning(f"ignored {native_topic}: {exc}", throttle_duration_sec=2.0)
                 return
             callback(s, cv.seconds_to_ns(s.t))
-        return node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), native_topic,
-                                        on_native, qos_profile(native_topic, reader=True))
+        return node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"),
+                                        node_topic_name(native_topic), on_native,
+                                        qos_profile(native_topic, reader=True))
 
     from bb2_msgs_py.contract import FRAME_BASE_LINK
 
@@ -701,7 +706,7 @@ def subscribe_state(node, source: str, callback: Callable[[Any, int], None], nat
             node.get_logger().warning(f"ignored /bb2/odom: {exc}", throttle_duration_sec=2.0)
             return
         callback(s, cv.stamp_to_ns(msg.header.stamp))
-    return node.create_subscription(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", on_odom,
+    return node.create_subscription(message_class("nav_msgs/msg/Odometry"), node_topic_name("/bb2/odom"), on_odom,
                                     qos_profile("/bb2/odom", reader=True))
 
 

@@ -33,7 +33,7 @@ from rclpy.node import Node
 
 from bb2_control.errors import NonFiniteInputError, PathFollowingError
 from bb2_msgs_py import conversions as cv
-from bb2_msgs_py.contract import FRAME_BASE_LINK, FRAME_PATH, message_class, qos_profile
+from bb2_msgs_py.contract import FRAME_BASE_LINK, FRAME_PATH, message_class, node_topic_name, qos_profile
 
 from bb2_mission.components import build_mission_stack
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
@@ -83,7 +83,7 @@ class PathFollowing(Node):
             self._build(self.mission.path)
         else:
             self.sub_path = node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"),
-                                                     "/bb2/path/bernstein", self._on_path,
+                                                     node_topic_name("/bb2/path/bernstein"), self._on_path,
                                                      qos_profile("/bb2/path/bernstein", reader=True))
         self.sub_state = subscribe_state(node, source, self._on_state, state_topic(self.mission))
         self.status = NodeStatus(node, "bb2/path_following", period, lambda: {

@@ -125,7 +125,7 @@ from bb2_msgs_py import scene_markers
 from bb2_msgs_py.contract import SCENE_TOPIC, SEA_SURFACE_TOPIC
 from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS, mountings_json, sample_messages
 from bb2_msgs_py.contract import (FRAME_BASE_LINK, FRAME_ODOM, PLANE_JOINTS, PROPELLER_JOINT, frame_prefix,
-                                  message_class, qos_profile, vehicle_frame)
+                                  message_class, node_topic_name, qos_profile, vehicle_frame)
 from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.state import VehicleState
 
@@ -290,7 +290,7 @@ class Simulator(Node):
         if self.nav is not None:
             self.pub[NAV_STATE_TOPIC] = pub(NAV_STATE_TOPIC)
         def sub(type_name, name, callback):  # the readers' QoS of the contract
-            return node.create_subscription(message_class(type_name), name, self._locked(callback),
+            return node.create_subscription(message_class(type_name), node_topic_name(name), self._locked(callback),
                                             qos_profile(name, reader=True))
 
         self.sub_planes = sub("sensor_msgs/msg/JointState", "/bb2/planes/cmd", self._on_planes)
@@ -299,7 +299,7 @@ class Simulator(Node):
             self.sub_ack = sub("std_msgs/msg/Header", "/bb2/recorder/ack", self._on_ack)
         if self.end_at_progress:
             self.sub_progress = node.create_subscription(
-                message_class("std_msgs/msg/Float64"), "/bb2/mission/progress",
+                message_class("std_msgs/msg/Float64"), node_topic_name("/bb2/mission/progress"),
                 self._locked(lambda m: setattr(self, "_path_flown", self._path_flown or m.data >= 1.0)),
                 qos_profile("/bb2/mission/progress", reader=True))
         self.warn = Throttle(node.get_logger(), throttle_s)
@@ -463,9 +463,10 @@ class Simulator(Node):
     def _start(self) -> None:
         """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
         after ``startup_timeout_s``), so that a recorder or a test started with the graph misses nothing."""
-        n = self.count_subscribers(self.resolve_topic_name("/bb2/state_native"))  # rclpy counts unremapped names
+        n = self.count_subscribers(self.resolve_topic_name(node_topic_name("/bb2/state_native")))  # rclpy counts
+        # unremapped names
         def readers(t: str) -> int:  # after -r remaps; the reader node's own readers
-            name = self.resolve_topic_name(t)
+            name = self.resolve_topic_name(node_topic_name(t))
             if not self.reader_node:
                 return self.count_subscribers(name)
             return sum(i.node_name == self.reader_node for i in self.get_subscriptions_info_by_topic(name))

@@ -27,7 +27,7 @@ from typing import Any, Sequence
 
 from rclpy.node import Node
 
-from bb2_msgs_py.contract import TopicSpec, message_class, qos_profile, select_topics
+from bb2_msgs_py.contract import TopicSpec, message_class, node_topic_name, qos_profile, select_topics
 from bb2_ros.node_common import NodeConfigError, declare, node_frame, node_options, run_node
 
 NODE_NAME = "foxglove_bridge"
@@ -93,7 +93,7 @@ class FoxgloveBridge(Node):
         from bb2_msgs_py.contract import FRAME_ODOM
 
         self.odom_frame = node_frame(self, FRAME_ODOM)  # map -> boat1/odom for a bridge in /boat1
-        self.subs = [self.create_subscription(message_class(s.type), s.name, self._forwarder(s.name),
+        self.subs = [self.create_subscription(message_class(s.type), node_topic_name(s.name), self._forwarder(s.name),
                                               qos_profile(s.name, reader=True), raw=True) for s in self.specs]
         self.url = f"ws://{host}:{self.server.port}"
         print(f"{NODE_NAME}: serving {len(self.channels) + len(tf_channels)} topics on {self.url} "

@@ -1,5 +1,6 @@
 """The graph monitor of bb2-launch: a small rclpy node on the graph's ``ROS_DOMAIN_ID`` reading sim time
-(``/clock``), mission progress (``/bb2/mission/progress``) and the simulator's ``/bb2/status``, and answering
+(``/clock``), mission progress (``/bb2/mission/progress``) and the simulator's ``/bb2/status`` -- of the boat in
+``namespace``: ``/boat1/clock``, ``/boat1/bb2/...`` (:func:`bb2_msgs_py.contract.boat_topic`) -- and answering
 graph questions (which nodes are up, who subscribes to what).
 
 ``/clock`` and the progress come once per step (hundreds per wall second in lockstep): they are polled, the
@@ -41,7 +42,7 @@ class GraphMonitor:
     ``/bb2/status`` on ``domain_id``; also answers graph questions (nodes, subscriptions)."""
 
     def __init__(self, domain_id: int, *, node_name: str = "bb2_launch_monitor", rtf_window_s: float = 3.0,
-                 end_at: str = "either"):
+                 end_at: str = "either", namespace: str = ""):
         if end_at not in END_AT:
             raise LaunchError(f"end_at must be one of {END_AT}, got {end_at!r}")
         self.domain_lock_fd: int | None = None  # the claim of the domain (claim_domain), released by close()
@@ -52,14 +53,16 @@ class GraphMonitor:
         from rclpy.serialization import deserialize_message
         from rclpy.signals import SignalHandlerOptions
 
-        from bb2_msgs_py.contract import message_class, qos_profile
+        from bb2_msgs_py.contract import boat_topic, message_class, qos_profile
 
         self.domain_id = domain_id
         self.node_name = node_name
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node(node_name, context=self.context, start_parameter_services=False,
-                                      enable_rosout=False)
+        self.namespace = namespace.strip("/")  # the watched boat's: its nodes in /NAMESPACE, its own clock
+        # the monitor's nodes sit in the boat's namespace too: two launches' monitors on one domain never share a name
+        self.node = rclpy.create_node(node_name, context=self.context, namespace="/" + self.namespace,
+                                      start_parameter_services=False, enable_rosout=False)
         self._lock = threading.Lock()
         self.sim_time_s: float | None = None
         self.progress: float | None = None
@@ -71,13 +74,14 @@ class GraphMonitor:
         self._first_step: tuple[float, float] | None = None  # the first /clock after t0 (stepping started)
         self.rtf_window_s = rtf_window_s
         n = self.node
-        n.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
+        n.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"),
+                              boat_topic("/bb2/status", self.namespace),
                               self._on_status, qos_profile("/bb2/status", reader=True))
         # /clock and the progress come once per step (hundreds per wall second in lockstep): they are not
         # spun (a Python callback each would take CPU from the graph) but polled, the latest sample only,
         # from a second node that no executor waits on.
         self.poll_node_name = node_name + "_poll"
-        self._poll_node = rclpy.create_node(self.poll_node_name, context=self.context,
+        self._poll_node = rclpy.create_node(self.poll_node_name, context=self.context, namespace="/" + self.namespace,
                                             start_parameter_services=False, enable_rosout=False)
 
         def latest_only(name):
@@ -89,9 +93,10 @@ class GraphMonitor:
         self._clock_type = message_class("rosgraph_msgs/msg/Clock")
         self._progress_type = message_class("std_msgs/msg/Float64")
         self._clock_sub = self._poll_node.create_subscription(
-            self._clock_type, "/clock", _unused, latest_only("/clock"), raw=True)
+            self._clock_type, boat_topic("/clock", self.namespace), _unused, latest_only("/clock"), raw=True)
         self._progress_sub = self._poll_node.create_subscription(
-            self._progress_type, "/bb2/mission/progress", _unused, latest_only("/bb2/mission/progress"), raw=True)
+            self._progress_type, boat_topic("/bb2/mission/progress", self.namespace), _unused,
+            latest_only("/bb2/mission/progress"), raw=True)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(n)
         self._stop = threading.Event()
@@ -180,9 +185,12 @@ class GraphMonitor:
         return sorted(n for n, _ns in self.node.get_node_names_and_namespaces() if n not in own)
 
     def subscribed(self, node_name: str, topics: Iterable[str]) -> bool:
-        """Whether ``node_name`` has a subscription on each of ``topics`` (as discovered here)."""
+        """Whether ``node_name`` (of the watched boat's namespace) has a subscription on each of ``topics``
+        (resolved names, as discovered here)."""
+        ns = "/" + self.namespace
         for t in topics:
-            if not any(i.node_name == node_name for i in self.node.get_subscriptions_info_by_topic(t)):
+            if not any(i.node_name == node_name and i.node_namespace == ns
+                       for i in self.node.get_subscriptions_info_by_topic(t)):
                 return False
         return True
 

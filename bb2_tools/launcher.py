@@ -26,8 +26,15 @@ Live view (``--foxglove [PORT]``): :mod:`bb2_tools.foxglove_live` beside the gra
 127.0.0.1:PORT (default 8765) serving every topic; restarted if it dies (a viewer never stops the mission); a
 taken port is refused before anything starts.
 
+A boat of several (``--namespace NAME``): every node in /NAME with a clock of its own -- topics /NAME/bb2/... and
+/NAME/clock, frames NAME/base_link, NAME/odom under map -- so launches of several boats on one ``--domain-id`` make
+one graph without crosstalk, each boat in lockstep with its own controllers (its run equals the same mission flown
+alone); its recorder writes the boat's topics under the contract's names (``/bb2/odom``: the bag analyses as a
+single boat's, its frames prefixed) and leaves ``/diagnostics`` (every boat's) out; the run directory ends in
+``_NAME``.
+
 Every child's stdout and stderr go to ``<run>/logs/<node>.log`` (and a ring buffer of the last
-lines).  ``<run>`` is the bag directory ``<bag-dir>/<mission>_<YYYYmmdd_HHMMSS>/`` (metadata.yaml
+lines).  ``<run>`` is the bag directory ``<bag-dir>/<mission>_<YYYYmmdd_HHMMSS>[_NAME]/`` (metadata.yaml
 and the .mcap beside ``logs/``).
 
 How a node is started (``--runner``): ``ros2`` (``ros2 run <pkg> <exe>``, when the ROS 2 CLI is
@@ -46,6 +53,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -59,6 +67,7 @@ from typing import Mapping, Sequence
 from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
 
 from bb2_ros.container import NODE_CLASSES
+from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
 from bb2_ros.node_common import PUBLISHED_DIR_ENV
 from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE
 from bb2_tools.graph_monitor import END_AT, GraphMonitor, claim_domain, format_status, free_domain_id
@@ -371,7 +380,8 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 record: bool = True, runner: str = "auto",
                 policies: Mapping[str, RestartPolicy] | None = None,
                 monitor: GraphMonitor | None = None,
-                groups: Sequence[Sequence[str]] = (), foxglove_port: int | None = None) -> list[ProcessSpec]:
+                groups: Sequence[Sequence[str]] = (), foxglove_port: int | None = None,
+                namespace: str = "") -> list[ProcessSpec]:
     """The process specs of the BB2 graph for one mission, in start order.
 
     The planner and the controllers, and in lockstep the simulator, are ``early``: :func:`run_graph`
@@ -385,13 +395,18 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     its readiness probe.  ``groups`` (:func:`compose_groups`): nodes composed into one process each
     (:mod:`bb2_ros.container`, every node with the arguments it has alone); such a process starts, finishes
     the graph, restarts and is reported as the nodes it holds would be.  ``foxglove_port``: the live Foxglove
-    server on that port (:data:`FOXGLOVE`, off the control loop, started with the others).
+    server on that port (:data:`FOXGLOVE`, off the control loop, started with the others).  ``namespace``: every
+    node (the recorder and the Foxglove server too) in /NAMESPACE with a clock of its own (:func:`namespace_args`):
+    the boat's topics are /NAMESPACE/bb2/... and /NAMESPACE/clock, so boats of several launches on one
+    ``--domain-id`` fly side by side without crosstalk.
     """
-    from bb2_msgs_py.contract import select_topics
+    from bb2_msgs_py.contract import boat_topic
 
     if mode not in ("lockstep", "realtime"):
         raise LaunchError(f"--mode must be lockstep or realtime, got {mode!r}")
     policies = dict(policies or {})
+    ns = check_namespace(namespace)
+    ns_args = namespace_args(ns)
 
     def node_args(name: str, attempt: int) -> list[str]:
         """The ROS arguments of node ``name`` (``attempt`` > 0: a restart, which rejoins the run)."""
@@ -409,6 +424,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 ros += ["-p", "wait_for_commands:=true"]
         else:
             ros += ["-p", "use_sim_time:=true"]
+        ros += ns_args
         if attempt > 0 and name in REJOINING:  # a node with state along the run joins the run where it stands
             ros += ["-p", f"{REJOINING[name]}:=true"]
         return ros
@@ -420,11 +436,12 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
             if not record:
                 continue
             base = node_command(node, runner)
-            topics = [t.name for t in select_topics()]
+            topics = [boat_topic(t, ns) for t in recorded_topics(ns)]
 
             def rec_cmd(attempt: int, base=base) -> list[str]:
                 out = run_dir if attempt == 0 else run_dir.with_name(f"{run_dir.name}_r{attempt}")
-                return [*base, "--out", str(out), "--overwrite", "--use-sim-time"]
+                return [*base, "--out", str(out), "--overwrite", "--use-sim-time",
+                        *(["--ros-args", *ns_args] if ns_args else [])]
 
             ready = (lambda m=monitor, t=topics: m.subscribed(RECORDER_NODE_NAME, t)) if monitor else None
             specs.append(ProcessSpec(node.name, rec_cmd, policies.get(node.name, RestartPolicy()), stop_stage=1,
@@ -450,12 +467,41 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                                  early="simulator" not in group or mode == "lockstep", nodes=len(group)))
     if foxglove_port is not None:
         base = node_command(FOXGLOVE, runner)
-        fox = [*base, "--ros-args", "-p", f"port:={int(foxglove_port)}", "-p", "use_sim_time:=true"]
+        fox = [*base, "--ros-args", "-p", f"port:={int(foxglove_port)}", "-p", "use_sim_time:=true", *ns_args]
         # a viewer that dies comes back (clients reconnect) and never stops the mission
         specs.insert(0, ProcessSpec(FOXGLOVE.name, lambda attempt, fox=fox: list(fox), RestartPolicy("restart"),
                                     nice=BACKGROUND_NICE, early=True))
     first = [s for s in specs if s.ready is not None]
     return first + [s for s in specs if s.ready is None]
+
+
+def recorded_topics(namespace: str = "") -> list[str]:
+    """The topics the graph's recorder records: every contract topic; in a boat's namespace the global ones left
+    out (``/diagnostics``: every boat's statuses; the boat's own are on its ``bb2/status``), as the recorder does."""
+    from bb2_msgs_py.contract import GLOBAL_TOPICS, select_topics
+
+    return [t.name for t in select_topics() if not (namespace and t.name in GLOBAL_TOPICS)]
+
+
+NAMESPACE_SEGMENT = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+
+
+def check_namespace(namespace: str) -> str:
+    """``namespace`` without its slashes (``''`` for the root namespace); a :class:`LaunchError` naming the rule when
+    it is not a ROS 2 namespace (segments of letters, digits and underscores, each starting with a letter)."""
+    ns = namespace.strip().strip("/")
+    if ns and not all(NAMESPACE_SEGMENT.fullmatch(p) for p in ns.split("/")):
+        raise LaunchError(f"--namespace must be a ROS 2 namespace (segments of letters, digits and '_', each "
+                          f"starting with a letter, separated by '/'), got {namespace!r}")
+    return ns
+
+
+def namespace_args(namespace: str) -> list[str]:
+    """The ROS arguments that put a node into /NAMESPACE with the boat's own clock: ``-r __ns:=/boat1
+    -r /clock:=/boat1/clock`` (its other topics follow the namespace by themselves: the nodes name them relative
+    to it); none for the root namespace."""
+    ns = namespace.strip("/")
+    return ["-r", f"__ns:=/{ns}", "-r", f"/clock:=/{ns}/clock"] if ns else []
 
 
 FOXGLOVE_DEFAULT_PORT = 8765
@@ -473,11 +519,6 @@ def check_foxglove_port(port: int) -> None:
             s.bind(("127.0.0.1", int(port)))
         except OSError as exc:
             raise LaunchError(f"--foxglove {port}: the port is not free on 127.0.0.1 ({exc.strerror})") from None
-
-
-RECORDER_ACK_WINDOW = 10
-"""Steps a lockstep simulator may run ahead of the recorder's acknowledgement (``recorder_ack_window``): a
-stalled recorder stops the graph within half a second of sim time, far inside every writer's history."""
 
 
 def gap_lines(bag: Path) -> list[str]:
@@ -516,11 +557,13 @@ def gap_lines(bag: Path) -> list[str]:
     return lines
 
 
-def merge_publication_counts(bag: Path, counts_dir: Path, exits: Sequence[NodeExit], topics: Sequence[str]) -> str:
+def merge_publication_counts(bag: Path, counts_dir: Path, exits: Sequence[NodeExit], topics: Sequence[str],
+                             namespace: str = "") -> str:
     """Merge the node processes' publication counts (``counts_dir``, :func:`bb2_ros.node_common.
     write_publication_counts`) over ``topics`` (those the recorder records) into ``bag``'s
     :data:`~bb2_tools.bagfile.PUBLICATION_COUNTS_FILE`, atomically; return a line for the summary when some
-    process left no count (killed: losses on its topics may go unseen), else ''."""
+    process left no count (killed: losses on its topics may go unseen), else ''.  The processes count resolved
+    names (``/boat1/bb2/odom`` in ``namespace`` boat1); the bag and the file name the contract's (``/bb2/odom``)."""
     import json
 
     records = []
@@ -531,11 +574,13 @@ def merge_publication_counts(bag: Path, counts_dir: Path, exits: Sequence[NodeEx
             continue
         if record.get("process") != FOXGLOVE.name:  # the viewer publishes nothing of the graph's
             records.append(record)
-    wanted = set(topics)
+    from bb2_msgs_py.contract import boat_topic
+
+    wanted = {boat_topic(t, namespace): t for t in topics}
     published: dict[str, int] = {}
     for r in records:
-        for name, n in dict(r.get("published") or {}).items():
-            if name in wanted:
+        for resolved, n in dict(r.get("published") or {}).items():
+            if (name := wanted.get(resolved)) is not None:
                 published[name] = published.get(name, 0) + int(n)
     node_exits = [e for e in exits if e.name not in ("recorder", FOXGLOVE.name)]
     uncounted = ([f"{e.name} (attempt {e.attempt}: {e.cause})" for e in node_exits if e.returncode < 0]
@@ -617,6 +662,9 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     p.add_argument("--out", type=Path, default=None,
                    help="run (bag) directory; default <bag-dir>/<mission>_<YYYYmmdd_HHMMSS>")
     p.add_argument("--no-record", action="store_true", help="do not start the recorder")
+    p.add_argument("--namespace", default="", metavar="NAME",
+                   help="run the boat's nodes in /NAME with a clock of its own (topics /NAME/bb2/..., /NAME/clock, "
+                        "frames NAME/base_link ...): boats of several launches on one --domain-id fly side by side")
     p.add_argument("--domain-id", type=int, default=None,
                    help="ROS_DOMAIN_ID (0..232); default a random free one in 1..101")
     p.add_argument("--restart", action="append", default=[], metavar="NODE=POLICY[,...]",
@@ -683,6 +731,7 @@ def _main(argv: Sequence[str] | None) -> int:
             raise LaunchError(f"--stall-timeout must be >= 0 and finite, got {args.stall_timeout}")
         if not (args.ready_timeout > 0 and math.isfinite(args.ready_timeout)):
             raise LaunchError(f"--ready-timeout must be > 0 and finite, got {args.ready_timeout}")
+        namespace = check_namespace(args.namespace)
         groups = compose_groups(args.group if args.group is not None else [] if args.compose else None)
         policies = parse_restart_policies(args.restart, process_names(groups), args.max_restarts)
         check_restart_policies(policies, groups)
@@ -699,20 +748,21 @@ def _main(argv: Sequence[str] | None) -> int:
         if args.out is not None:
             run_dir = claim_run_dir(path=args.out.resolve())
         else:
-            run_dir = claim_run_dir(args.bag_dir.resolve(), f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}")
+            run_dir = claim_run_dir(args.bag_dir.resolve(), f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}"
+                                    + (f"_{namespace.replace('/', '_')}" if namespace else ""))
     except (LaunchError, OutputError) as exc:
         print(f"bb2-launch: error: {exc}", file=sys.stderr)
         return 2
 
     try:
         if args.domain_id is not None:
-            monitor = GraphMonitor(args.domain_id, end_at=args.end_at)
+            monitor = GraphMonitor(args.domain_id, end_at=args.end_at, namespace=namespace)
             monitor.domain_lock_fd = claim_domain(args.domain_id)
-            if monitor.domain_lock_fd is None:
+            if monitor.domain_lock_fd is None and not namespace:
                 print(f"[bb2-launch] warning: another bb2-launch runs on ROS_DOMAIN_ID={args.domain_id}: the two "
-                      "graphs will see each other's topics", file=sys.stderr)
+                      "graphs will see each other's topics (give each its own --namespace)", file=sys.stderr)
         else:
-            monitor = free_domain_id(end_at=args.end_at)
+            monitor = free_domain_id(end_at=args.end_at, namespace=namespace)
     except LaunchError as exc:
         print(f"bb2-launch: error: {exc}", file=sys.stderr)
         return 2
@@ -723,10 +773,10 @@ def _main(argv: Sequence[str] | None) -> int:
     env[PUBLISHED_DIR_ENV] = str(log_dir / "published")  # each node process's counts, compared with the bag
     specs = graph_specs(mission, run_dir, mode=args.mode, params=params, record=not args.no_record,
                         runner=args.runner, policies=policies, monitor=monitor, groups=groups,
-                        foxglove_port=args.foxglove)
+                        foxglove_port=args.foxglove, namespace=namespace)
     echo = (lambda name, line: print(f"[{name}] {line}", file=sys.stderr, flush=True)) if args.echo else None
     print(f"[bb2-launch] mission {mission} | mode {args.mode} | ROS_DOMAIN_ID={monitor.domain_id} | "
-          f"run {run_dir}", file=sys.stderr, flush=True)
+          + (f"namespace /{namespace} | " if namespace else "") + f"run {run_dir}", file=sys.stderr, flush=True)
     for g in groups:
         print(f"[bb2-launch] composed: process '{process_name(g)}' runs {', '.join(g)}", file=sys.stderr, flush=True)
     if args.foxglove is not None:
@@ -745,11 +795,9 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"[bb2-launch] {note}", file=sys.stderr)
     counts_note = ""
     if len(bags) == 1 and bags[0].is_dir():  # a restarted recorder splits the run: its bags are not compared
-        from bb2_msgs_py.contract import select_topics
-
         try:
             counts_note = merge_publication_counts(bags[0], log_dir / "published", result.exits,
-                                                   [t.name for t in select_topics()])
+                                                   recorded_topics(namespace), namespace)
         except OSError as exc:
             counts_note = f"cannot write {bags[0] / PUBLICATION_COUNTS_FILE}: {exc}"
     rtf = f"{result.rtf_overall:.1f}x" if result.rtf_overall else "--"

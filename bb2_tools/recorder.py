@@ -52,7 +52,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, GLOBAL_TOPICS, SCENE_TOPIC, SIM, ContractError, TopicSpec,
-                                  message_class, select_topics)
+                                  message_class, node_topic_name, select_topics)
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros.node_common import node_frame, restore_signals, stop_signals, take_all, time_msg
@@ -295,7 +295,7 @@ class Recorder:
         self.acks = StepAcks(step_topics(topics))
         if acknowledge and STATE_TOPIC in self.specs:
             from bb2_msgs_py.contract import qos_profile
-            self._ack_pub = self.node.create_publisher(message_class("std_msgs/msg/Header"), ACK_TOPIC,
+            self._ack_pub = self.node.create_publisher(message_class("std_msgs/msg/Header"), node_topic_name(ACK_TOPIC),
                                                        qos_profile(ACK_TOPIC))
             self._state_type = message_class("std_msgs/msg/Float64MultiArray")
             self._header_type = message_class("std_msgs/msg/Header")
@@ -304,7 +304,8 @@ class Recorder:
         self._wait_set = None
 
     def _subscribe(self, spec: TopicSpec, *, best_effort: bool = False):
-        return self.node.create_subscription(message_class(spec.type), spec.name, self._unused_callback,
+        return self.node.create_subscription(message_class(spec.type), node_topic_name(spec.name),
+                                             self._unused_callback,
                                              subscription_qos(spec, self._queue_depth, best_effort=best_effort),
                                              raw=True)
 
@@ -318,7 +319,7 @@ class Recorder:
             if spec is None or sub.qos_profile.reliability != ReliabilityPolicy.RELIABLE:  # /clock only, or done
                 continue
             try:
-                infos = self.node.get_publishers_info_by_topic(spec.name)
+                infos = self.node.get_publishers_info_by_topic(node_topic_name(spec.name))
             except Exception:  # discovery hiccup: try again at the next flush
                 continue
             if any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos):
@@ -333,7 +334,8 @@ class Recorder:
 
     def _offered_qos(self, name: str) -> list[dict[str, Any]]:
         try:
-            return [qos_to_entry(info.qos_profile) for info in self.node.get_publishers_info_by_topic(name)]
+            return [qos_to_entry(info.qos_profile)
+                    for info in self.node.get_publishers_info_by_topic(node_topic_name(name))]
         except Exception as exc:  # discovery hiccup: record without QoS rather than lose data
             self.node.get_logger().warning(f"cannot read offered QoS of {name}: {exc}")
             return []

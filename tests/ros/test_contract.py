@@ -222,3 +222,18 @@ def test_stamps_are_whole_nanoseconds():
     with pytest.raises(ValueError):
         conv.stamp(-1.0)
     assert conv.clock_message(3.25).clock.nanosec == 250_000_000
+
+
+def test_nodes_name_topics_relative_to_their_namespace_but_clock_diagnostics_and_tf():
+    """Issue 13, point 4: a node creates ``bb2/odom`` (the contract's ``/bb2/odom`` in the root namespace, the boat's
+    ``/boat1/bb2/odom`` in /boat1); ``/clock``, ``/diagnostics`` and the tf topics stay absolute; a boat with its own
+    clock resolves ``/clock`` to ``/boat1/clock``."""
+    from bb2_msgs_py.contract import ABSOLUTE_TOPICS, GLOBAL_TOPICS, boat_topic, node_topic_name
+
+    assert node_topic_name("/bb2/odom") == "bb2/odom" and node_topic_name("bb2/odom") == "bb2/odom"
+    assert {node_topic_name(t) for t in ABSOLUTE_TOPICS} == set(ABSOLUTE_TOPICS) >= {"/clock", "/tf", *GLOBAL_TOPICS}
+    relative = [t.name for t in CONTRACT if not node_topic_name(t.name).startswith("/")]
+    assert len(relative) == len(CONTRACT) - len([t for t in CONTRACT if t.name in ABSOLUTE_TOPICS])
+    assert boat_topic("/bb2/odom", "/boat1/") == "/boat1/bb2/odom" and boat_topic("/clock", "boat1") == "/boat1/clock"
+    assert boat_topic("/diagnostics", "boat1") == "/diagnostics" and boat_topic("/tf", "boat1") == "/tf"
+    assert all(boat_topic(t.name, "") == t.name for t in CONTRACT)  # the root namespace: the contract's names

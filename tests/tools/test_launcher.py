@@ -175,6 +175,43 @@ def test_graph_specs_pass_mission_mode_params_and_sim_time(tmp_path):
     assert "recorder" not in [s.name for s in L.graph_specs(mission, run, record=False, runner="python")]
 
 
+def test_a_namespaced_boat_runs_every_node_in_its_namespace_with_its_own_clock(tmp_path, capsys):
+    """``--namespace NAME`` (issue 13, point 4): every node -- the recorder and the Foxglove server too -- gets
+    ``-r __ns:=/NAME -r /clock:=/NAME/clock`` (the nodes name their other topics relative to the namespace); the
+    recorder's readiness is read on the boat's resolved topics, /diagnostics (every boat's) left out; a name that
+    is not a ROS 2 namespace is refused before anything starts."""
+    asked = []
+
+    class FakeMonitor:
+        def subscribed(self, node, topics):
+            asked.append((node, list(topics)))
+            return True
+
+    ns_args = ["-r", "__ns:=/boat1", "-r", "/clock:=/boat1/clock"]
+    specs = L.graph_specs(tmp_path / "m.yaml", tmp_path / "run", mode="lockstep", runner="python",
+                          monitor=FakeMonitor(), groups=[("path_following", "l1_autopilot")], foxglove_port=8765,
+                          namespace="/boat1/")
+    for spec in specs:
+        argv = spec.argv(0)
+        per_node = argv.count("--node") or 1  # a composed process: each node's own ROS arguments
+        assert sum(argv[i:i + 4] == ns_args for i in range(len(argv))) == per_node, (spec.name, argv)
+    by = {s.name: s for s in specs}
+    assert by["recorder"].ready()
+    ((node, topics),) = asked
+    assert node == "recorder" and "/boat1/bb2/odom" in topics and "/boat1/clock" in topics
+    assert "/diagnostics" not in topics and not [t for t in topics if t.startswith("/bb2/")]
+    alone = {s.name: s.argv(0) for s in L.graph_specs(tmp_path / "m.yaml", tmp_path / "run", runner="python")}
+    assert not [a for argv in alone.values() for a in argv if "__ns" in a or "/clock:=" in a]
+    assert L.check_namespace("fleet/boat_2") == "fleet/boat_2"
+    good = tmp_path / "m.yaml"
+    good.write_text("name: x\n")
+    for bad in ("1boat", "boat 1", "boat-1", "a//b"):
+        with pytest.raises(S.LaunchError, match="--namespace must be a ROS 2 namespace"):
+            L.check_namespace(bad)
+        assert L.main([str(good), "--namespace", bad]) == 2
+        assert "--namespace must be a ROS 2 namespace" in capsys.readouterr().err
+
+
 def test_lockstep_start_everything_at_once_the_simulator_waits_for_the_recorder(tmp_path):
     class FakeMonitor:
         def subscribed(self, node, topics):
@@ -572,6 +609,51 @@ def test_bb2_launch_flies_a_short_mission_and_records_the_bag(tmp_path, bb2_grap
 
 
 @pytest.mark.ros
+def test_bb2_launch_boats_in_namespaces_share_a_domain_without_crosstalk(tmp_path, bb2_graph_available):
+    """Issue 13, point 4: two ``bb2-launch --namespace`` of different missions on one ``--domain-id`` make one graph
+    of two boats, each in lockstep with its own controllers and clock: each boat's bag equals its mission's library
+    run (1e-9 m, so no command of the other boat was taken), its frames carry its namespace, its topics are recorded
+    under the contract's names, every published message is accounted for (the publication counts, resolved names
+    mapped back), and the other boat's topics are not in it."""
+    import numpy as np
+
+    from bb2_tools.bag_run import read_bag
+    from bb2_tools.bagfile import BagReader, read_publication_counts
+    from rosenv import library_trajectory
+
+    domain = claimed_domain()
+    straight = _short_mission(tmp_path, 5.0)
+    circle = tmp_path / "circle_5s.yaml"
+    circle.write_text(f"extends: {REPO / 'missions' / 'circle.yaml'}\nname: circle_short\nduration_s: 5.0\n")
+    env = ros_env()
+    boats = {"boat1": straight, "boat2": circle}
+    procs = {ns: subprocess.Popen([sys.executable, "-m", "bb2_tools.launcher", str(m), "--namespace", ns,
+                                   "--domain-id", str(domain), "--out", str(tmp_path / ns), "--end-at", "simulator",
+                                   "--timeout", "150"], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True)
+             for ns, m in boats.items()}
+    errs = {ns: p.communicate(timeout=200)[1] for ns, p in procs.items()}
+    for ns, p in procs.items():
+        assert p.returncode == 0, (ns, errs[ns][-3000:])
+        assert f"namespace /{ns}" in errs[ns] and "mission complete" in errs[ns], errs[ns][-3000:]
+        assert "another bb2-launch runs" not in errs[ns]  # boats in namespaces share a domain on purpose
+    for ns, mission in boats.items():
+        bag = tmp_path / ns
+        ref = library_trajectory(mission)
+        run = read_bag(bag)
+        assert run.x.shape == (len(ref), 12) and not run.warnings, (ns, run.x.shape, len(ref), run.warnings)
+        assert np.max(np.abs(run.x - ref[:, 1:])) <= 1e-9, ns
+        reader = BagReader(bag)
+        assert reader.vehicle_base_link() == f"{ns}/base_link"
+        assert "/bb2/odom" in reader.topics and "/diagnostics" not in reader.topics
+        assert not [t for t in reader.topics if t.startswith("/boat")], sorted(reader.topics)
+        published = read_publication_counts(bag)
+        assert published["/bb2/state_native"] == reader.message_counts["/bb2/state_native"] >= len(ref), ns
+        assert published["/clock"] >= len(ref), ns
+    assert np.ptp(read_bag(tmp_path / "boat2").x[:, 5]) > 0.01  # the circle turns: two different boats flew
+
+
+@pytest.mark.ros
 def test_bb2_launch_reports_a_killed_simulator_and_exits_nonzero(tmp_path, bb2_graph_available):
     mission = _short_mission(tmp_path, 400.0)
     out = tmp_path / "bags" / "run"
@@ -694,6 +776,17 @@ def test_publication_counts_are_merged_over_the_recorded_topics_and_a_killed_pro
     doc = json.loads((bag / PUBLICATION_COUNTS_FILE).read_text())
     assert doc["published"] == {"/bb2/planes/cmd": 10, "/bb2/state_native": 10, "/bb2/status": 5}, doc
     assert [r["process"] for r in doc["processes"]] == ["mixer", "mixer", "simulator"] and doc["uncounted"] == []
+    # a boat in /boat1: its processes count resolved names, the file names the bag's (the contract's)
+    boat = tmp_path / "boat_bag"
+    boat.mkdir()
+    boat_counts = tmp_path / "boat_published"
+    boat_counts.mkdir()
+    (boat_counts / "simulator-5.json").write_text(json.dumps({"process": "simulator", "pid": 5, "published": {
+        "/boat1/bb2/state_native": 7, "/boat1/clock": 8, "/diagnostics": 2, "/bb2/status": 99}}))
+    assert L.merge_publication_counts(boat, boat_counts, [exit_("simulator", 0)],
+                                      ["/bb2/state_native", "/clock", "/bb2/status"], "boat1") == ""
+    assert json.loads((boat / PUBLICATION_COUNTS_FILE).read_text())["published"] == {
+        "/bb2/state_native": 7, "/clock": 8}  # another boat's (root) /bb2/status is not this boat's
     (counts / "mixer-2.json").write_text('{"process": "mix')              # killed while writing: half a file
     note = L.merge_publication_counts(bag, counts, exits, topics)
     assert "publication counts missing from mixer (attempt 0: killed by SIGKILL)" in note, note

@@ -42,13 +42,10 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.substitutions import ExecutableInPackage
 
-from bb2_msgs_py.contract import GLOBAL_TOPICS
+from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
-NOT_REMAPPED = (*GLOBAL_TOPICS, "/tf")  # the standard diagnostics topic is every boat's (a boat's recorder leaves
-# it out); /tf is written into bags only
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
-RECORDER_ACK_WINDOW = 10  # bb2_tools.launcher.RECORDER_ACK_WINDOW: steps the simulator may run ahead of the recorder
 
 ARGUMENTS = {
     "mission": ("canyon", "a mission in share/bb2_bringup/missions (name without .yaml) or a mission file"),
@@ -85,32 +82,13 @@ def flag(value: str, name: str) -> bool:
     return v == "true"
 
 
-NODE_TOPICS = {  # the topics each controller node uses (its TOPICS), besides /clock
-    "planner": ("/bb2/path", "/bb2/path/bernstein", "/bb2/status"),
-    "path_following": ("/bb2/state_native", "/bb2/odom", "/bb2/path/bernstein", "/bb2/guidance/rate_cmd",
-                       "/bb2/guidance/path_error", "/bb2/mission/progress", "/bb2/status"),
-    "l1_autopilot": ("/bb2/state_native", "/bb2/odom", "/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd",
-                     "/bb2/propeller/cmd", "/bb2/status"),
-    "mixer": ("/bb2/autopilot/vh_cmd", "/bb2/planes/cmd", "/bb2/status"),
-}
-
-
-def remappings(namespace: str, node: str) -> list[tuple[str, str]]:
-    """The topics of ``node`` (and /clock) under /NAMESPACE; none without a namespace.  The simulator's are the
-    contract topics it publishes and its inputs, the recorder's every contract topic."""
-    if not namespace:
-        return []
-    from bb2_msgs_py.contract import CONTRACT
-
-    if node == "simulator":
-        names = [t.name for t in CONTRACT if t.publisher == "simulator"] + [
-            "/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress", "/bb2/recorder/ack"]
-    elif node in ("recorder", "foxglove_bridge"):
-        names = [t.name for t in CONTRACT]
-    else:
-        names = list(NODE_TOPICS[node])
-    ns = "/" + namespace.strip("/")
-    return [(n, ns + n) for n in dict.fromkeys(["/clock", *names]) if n not in NOT_REMAPPED]
+def remappings(namespace: str) -> list[tuple[str, str]]:
+    """A boat in /NAMESPACE has a clock of its own: ``/clock`` (absolute, as rclpy's time source reads it) ->
+    ``/NAMESPACE/clock``; none without a namespace.  Its other topics go under /NAMESPACE by themselves: the nodes
+    name them relative to their namespace (``bb2_msgs_py.contract.node_topic_name``), ``/diagnostics`` and ``/tf``
+    stay every boat's."""
+    ns = namespace.strip("/")
+    return [("/clock", f"/{ns}/clock")] if ns else []
 
 
 def _ros_value(v) -> str:
@@ -127,7 +105,7 @@ def container_arguments(nodes: list[tuple[str, dict]], params: list[str], ns: st
             out += ["--params-file", f]
         for k, v in values.items():
             out += ["-p", f"{k}:={_ros_value(v)}"]
-        for a, b in remappings(ns, executable):
+        for a, b in remappings(ns):
             out += ["-r", f"{a}:={b}"]
         if ns:
             out += ["-r", f"__ns:=/{ns}"]
@@ -149,7 +127,7 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     def node(package, executable, extra, *, background=False, arguments=()):
         return Node(package=package, executable=executable, name=executable, namespace=ns or None,
                     parameters=[*params, {**common, **extra}] if package == "bb2_ros" else [extra],
-                    remappings=remappings(ns, executable), arguments=list(arguments), output="screen",
+                    remappings=remappings(ns), arguments=list(arguments), output="screen",
                     prefix=BACKGROUND if background else None)
 
     actions = []
