@@ -1,31 +1,11 @@
 """ament_python packaging of the bb2_planner Python package for `colcon build` (ROS 2 Jazzy).
 
 The code is not copied here: ``bb2_planner/`` in this directory is a symlink to the top-level source
-(``../../../bb2_planner``), which both colcon modes handle (see bb2_ros_ws/README.md).  Executables
-are installed under ``lib/bb2_planner`` (setup.cfg) so that ``ros2 run bb2_planner <executable>`` finds them.
+(``../../../bb2_planner``; see bb2_ros_ws/README.md).  The name, version, description, maintainer and license
+come from package.xml, the rest is ``bb2_ros_ws/ament_setup.py``.
 """
-from setuptools import find_packages, setup
+import runpy
+from pathlib import Path
 
-package_name = 'bb2_planner'
-
-setup(
-    name=package_name,
-    version='0.1.0',
-    packages=find_packages(include=[package_name, package_name + '.*']),
-    package_data={package_name: ['data/*.json', 'data/*.yaml', 'data/**/*.json', 'data/**/*.yaml',
-                                 'data/**/*.npz']},
-    data_files=[
-        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
-        ('share/' + package_name, ['package.xml']),
-    ],
-    install_requires=['setuptools'],
-    zip_safe=False,
-    maintainer='BB2 Sim developers',
-    maintainer_email='bb2-sim@todo.todo',
-    description='Bernstein-polynomial path planning for the BB2 (paths, terrain, constrained optimal trajectories). No ROS.',
-    license='TODO',
-    entry_points={
-        'console_scripts': [
-        ],
-    },
-)
+setup_package = runpy.run_path(str(Path(__file__).resolve().parents[2] / 'ament_setup.py'))['setup_package']
+setup_package(__file__)
