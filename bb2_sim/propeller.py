@@ -24,13 +24,19 @@ def propeller_load(u: float, z: float, rps: float, params: RomParameters, td_tab
     The thrust-deduction table's inputs are swapped in the model (quirk Q8): u goes to the depth axis and z
     to the speed axis, so t is constant in practice. ``wired_correctly`` feeds z and u to their own axes.
     """
+    return load_with_deduction(u, rps, td_table(z, u) if wired_correctly else td_table(u, z), params)
+
+
+def load_with_deduction(u, rps, t, params: RomParameters) -> PropellerLoad:
+    """The open-water polynomials and the loads at body velocity u (m/s), n = rps and thrust deduction t: floats
+    for one boat, or arrays (N,) elementwise for a batch (:mod:`bb2_sim.batch.propeller`; the same operations, so
+    the same bits)."""
     D = params.prop_D
     J = (-u) / (rps * D)
     a, b, c = params.KT_poly
     KT = a * J * J + b * J + c
     a, b, c = params.KQ_poly
     KQ = a * J * J + b * J + c
-    t = td_table(z, u) if wired_correctly else td_table(u, z)
     n2 = rps * rps
     thrust = KT * (1.0 - t) * params.rho * n2 * D ** 4
     torque = KQ * params.rho * n2 * D ** 5

@@ -1,10 +1,11 @@
-"""Propeller for a batch of boats: the twin of :func:`bb2_sim.propeller.propeller_load` on arrays (N,)."""
+"""Propeller for a batch of boats: :func:`bb2_sim.propeller.propeller_load` on arrays (N,) (the batch
+thrust-deduction lookup, then the scalar code's :func:`~bb2_sim.propeller.load_with_deduction`)."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..parameters import RomParameters
-from ..propeller import PropellerLoad
+from ..propeller import PropellerLoad, load_with_deduction
 from .lookup import BatchTable, Segments
 
 
@@ -15,14 +16,5 @@ def propeller_load(u: np.ndarray, z: np.ndarray, rps: np.ndarray, params: RomPar
     Returns a :class:`bb2_sim.propeller.PropellerLoad` whose fields are arrays (N,). The thrust-deduction
     table's inputs are swapped (quirk Q8) unless ``wired_correctly``.
     """
-    D = params.prop_D
-    J = (-u) / (rps * D)
-    a, b, c = params.KT_poly
-    KT = a * J * J + b * J + c
-    a, b, c = params.KQ_poly
-    KQ = a * J * J + b * J + c
     t = td_table(seg, ("z", z), ("u", u)) if wired_correctly else td_table(seg, ("u", u), ("z", z))
-    n2 = rps * rps
-    thrust = KT * (1.0 - t) * params.rho * n2 * D ** 4
-    torque = KQ * params.rho * n2 * D ** 5
-    return PropellerLoad(J, KT, KQ, t, thrust, torque)
+    return load_with_deduction(u, rps, t, params)

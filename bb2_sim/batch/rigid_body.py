@@ -1,5 +1,5 @@
-"""Rigid-body equations and kinematics for a batch of boats: twins of
-:func:`bb2_sim.rigid_body.rigid_body_acceleration` (written out per component on arrays (N,)) and of the kinematics
+"""Rigid-body equations and kinematics for a batch of boats: :func:`bb2_sim.rigid_body.rigid_body_acceleration`
+on arrays (N,) (its b-vector, :func:`bb2_sim.rigid_body.velocity_terms`, shared) and twins of the kinematics
 of :meth:`bb2_sim.model.BB2Model.evaluate` (``R @ V`` and ``euler_rate_matrix @ omega``).
 """
 from __future__ import annotations
@@ -7,26 +7,19 @@ from __future__ import annotations
 import numpy as np
 
 from ..parameters import RomParameters
+from ..rigid_body import velocity_terms
 
 
 def rigid_body_acceleration(F: np.ndarray, u, v, w, p, q, r, params: RomParameters,
                             euler_roll: bool = False) -> np.ndarray:
     """Body accelerations d[u, v, w, p, q, r]/dt (N, 6), native body axes, for the total loads F (N, 6).
 
-    As the scalar code: the authors' roll term (Ixx - Iyy) q r (quirk Q1) unless ``euler_roll``; the data's Mb.
+    The scalar code's b-vector (:func:`bb2_sim.rigid_body.velocity_terms`) on arrays: the authors' roll term
+    (Ixx - Iyy) q r (quirk Q1) unless ``euler_roll``; the data's Mb.
     """
-    Mb = params.Mb
+    b = np.stack(velocity_terms(u, v, w, p, q, r, params, euler_roll), axis=1)
     Ixx, Iyy, Izz = params.inertia
-    Xg, Yg, Zg = params.cg_offset
-    b = np.stack([
-        Mb * (w * q - v * r - Xg * (q * q + r * r) + Yg * p * q + Zg * p * r),
-        Mb * (u * r - w * p - Yg * (r * r + p * p) + Zg * q * r + Xg * p * q),
-        Mb * (v * p - u * q - Zg * (p * p + q * q) + Xg * r * p + Yg * r * q),
-        ((Izz - Iyy) if euler_roll else (Ixx - Iyy)) * q * r + Mb * (Yg * (v * p - u * q) - Zg * (u * r - w * p)),
-        (Ixx - Izz) * r * p + Mb * (Zg * (w * q - v * r) - Xg * (v * p - u * q)),
-        (Iyy - Ixx) * p * q + Mb * (Xg * (u * r - w * p) - Yg * (w * q - v * r)),
-    ], axis=1)
-    diagA = np.array([Mb, Mb, Mb, Ixx, Iyy, Izz])
+    diagA = np.array([params.Mb, params.Mb, params.Mb, Ixx, Iyy, Izz])
     return (F - b) / diagA
 
 
