@@ -97,6 +97,11 @@ class GraphMonitor:
         self._progress_sub = self._poll_node.create_subscription(
             self._progress_type, boat_topic("/bb2/mission/progress", self.namespace), _unused,
             latest_only("/bb2/mission/progress"), raw=True)
+        self.recorder_ack_s: float | None = None  # the newest /bb2/recorder/ack: the recorder holds every step to it
+        self._ack_type = message_class("std_msgs/msg/Header")
+        self._ack_sub = self._poll_node.create_subscription(
+            self._ack_type, boat_topic("/bb2/recorder/ack", self.namespace), _unused,
+            latest_only("/bb2/recorder/ack"), raw=True)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(n)
         self._stop = threading.Event()
@@ -116,8 +121,9 @@ class GraphMonitor:
     POLL_S = 0.05
 
     def _poll(self) -> None:
-        """Take the latest /clock and progress (if new ones came)."""
-        for sub, handler in ((self._clock_sub, self._on_clock), (self._progress_sub, self._on_progress)):
+        """Take the latest /clock, progress and recorder acknowledgement (if new ones came)."""
+        for sub, handler in ((self._clock_sub, self._on_clock), (self._progress_sub, self._on_progress),
+                             (self._ack_sub, self._on_ack)):
             got = take_all(sub)
             if got:
                 data, info = got[-1]
@@ -141,6 +147,11 @@ class GraphMonitor:
         p = self._deserialize(data, self._progress_type).data
         with self._lock:
             self.progress = p
+
+    def _on_ack(self, data: bytes, _wall: float = 0.0) -> None:
+        stamp = self._deserialize(data, self._ack_type).stamp
+        with self._lock:
+            self.recorder_ack_s = stamp.sec + stamp.nanosec * 1e-9
 
     def _on_status(self, msg) -> None:
         for st in msg.status:

@@ -164,6 +164,40 @@ class _StopFlag:
         self.signame = signal.Signals(signum).name
 
 
+RECORDER_CATCH_UP_S = 30.0
+"""Wall seconds the launcher waits, at the end of a mission, for a recorder behind the graph to hold the last
+step before it stops the nodes (a writer that exits takes its undelivered samples with it)."""
+
+
+def caught_up(monitor: GraphMonitor, say, *, interrupted=lambda: False, limit_s: float = RECORDER_CATCH_UP_S) -> bool:
+    """Wait until the recorder acknowledges the graph's last step (``/bb2/recorder/ack`` up to the last ``/clock``):
+    in real time nothing holds the graph back for a recorder starved of CPU, which may be seconds behind when the
+    mission ends; stopping the nodes then would lose what it has not received yet.  Says how far behind it was
+    and, after ``limit_s`` (or an interruption), that the tail may be missing; returns whether it caught up."""
+    target = monitor.sim_time_s
+    if target is None:
+        return True
+    t0 = time.monotonic()
+    said = False
+    while (monitor.recorder_ack_s or -math.inf) < target - 1e-9:
+        waited = time.monotonic() - t0
+        if waited > limit_s or interrupted():
+            ack = monitor.recorder_ack_s
+            say(f"[bb2-launch] warning: the recorder still holds steps only to "
+                f"{'--' if ack is None else f'{ack:.2f}'} s of the last {target:.2f} s after {waited:.0f} s: "
+                "stopping anyway (the bag's gaps say what is missing)")
+            return False
+        if not said and waited > 0.5:
+            ack = monitor.recorder_ack_s
+            say(f"[bb2-launch] waiting for the recorder to record the last steps "
+                f"({'--' if ack is None else f'{ack:.2f}'} s of {target:.2f} s)")
+            said = True
+        time.sleep(0.05)
+    if said:
+        say(f"[bb2-launch] the recorder holds every step after {time.monotonic() - t0:.1f} s")
+    return True
+
+
 def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[str] = (),
               ready_timeout_s: float = 30.0, timeout_s: float | None = None, status_period_s: float = 5.0,
               out=sys.stderr, handle_signals: bool = True, stall_timeout_s: float | None = None) -> RunResult:
@@ -254,6 +288,8 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
             time.sleep(0.1)
         if tty:
             print(file=out)
+        if reason == "mission complete" and "recorder" in sup.running() and monitor is not None:
+            caught_up(monitor, say, interrupted=lambda: bool(flag.count))
         say(f"[bb2-launch] stopping: {reason}")
         if sup.failure:
             say(f"[bb2-launch] {sup.failure.report()}")

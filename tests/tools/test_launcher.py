@@ -654,6 +654,55 @@ def test_bb2_launch_boats_in_namespaces_share_a_domain_without_crosstalk(tmp_pat
 
 
 @pytest.mark.ros
+def test_realtime_end_waits_for_a_recorder_behind_and_the_bag_holds_the_last_step(tmp_path, bb2_graph_available):
+    """In real time nothing holds the graph back for a recorder starved of CPU: at the end of the mission it may be
+    seconds behind, and stopping the nodes then loses what their writers still hold for it.  Here the recorder is
+    frozen (SIGSTOP) from the first step to the end: the launcher says it waits for the recorder, the recorder
+    (continued) takes the writers' histories, and the bag ends on the mission's last step."""
+    import threading
+
+    from bb2_tools.bag_run import read_bag
+
+    mission = _short_mission(tmp_path, 8.0)
+    out = tmp_path / "bags" / "run"
+    p = subprocess.Popen([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out),
+                          "--mode", "realtime", "--end-at", "simulator", "--timeout", "150"], cwd=tmp_path,
+                         env=ros_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(p.stderr), daemon=True)
+    reader.start()
+    recorder = None
+    try:
+        t0 = time.monotonic()
+        sim_log = out / "logs" / "simulator.log"
+        while not (sim_log.is_file() and "the controllers answered the first state" in sim_log.read_text()):
+            assert p.poll() is None and time.monotonic() - t0 < 120, "".join(lines)[-3000:]
+            time.sleep(0.05)
+        (recorder,) = [pid for pid, cmd in _children(p.pid).items() if "recorder" in cmd]
+        os.kill(recorder, signal.SIGSTOP)
+        while not any("waiting for the recorder" in line for line in lines):
+            assert not any("stopping:" in line for line in lines), "".join(lines)[-3000:]
+            assert p.poll() is None and time.monotonic() - t0 < 150, "".join(lines)[-3000:]
+            time.sleep(0.05)
+        os.kill(recorder, signal.SIGCONT)
+        recorder = None
+        p.wait(timeout=120)
+    finally:
+        if recorder is not None:
+            os.kill(recorder, signal.SIGCONT)
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGINT)
+            p.wait(timeout=60)
+    reader.join(10)
+    err = "".join(lines)
+    assert p.returncode == 0 and "mission complete" in err, err[-3000:]
+    assert "the recorder holds every step after" in err and "stopping anyway" not in err, err[-3000:]
+    run = read_bag(out)
+    assert run.t[-1] == pytest.approx(8.0), (run.t[-1], err[-3000:])  # the last step is in the bag
+
+
+@pytest.mark.ros
 def test_bb2_launch_reports_a_killed_simulator_and_exits_nonzero(tmp_path, bb2_graph_available):
     mission = _short_mission(tmp_path, 400.0)
     out = tmp_path / "bags" / "run"
