@@ -177,6 +177,14 @@ class GraphMonitor:
             (w0, t0), (w1, t1) = self._samples[0], self._samples[-1]
         return (t1 - t0) / (w1 - w0) if w1 > w0 else None
 
+    @property
+    def stepping_started(self) -> bool:
+        """Whether the graph has stepped: the sim time moved past the first one seen here, or that one was already
+        past 0 (this monitor came late).  Before, the graph is at its start-up handshake at t = 0, waiting for every
+        node to answer."""
+        with self._lock:
+            return self._first_step is not None or (self._first is not None and self._first[1] > 0.0)
+
     def stepping_span(self) -> tuple[float | None, float | None]:
         """(sim s, wall s) from the first /clock after the start time to the last one."""
         with self._lock:

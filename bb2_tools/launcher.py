@@ -263,8 +263,10 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 reason, code = f"interrupted ({flag.signame})", 130
             elif timeout_s and now - t0 > timeout_s:
                 reason, code = f"timeout after {timeout_s:g} s", 1
-            elif stall_timeout_s and monitor is not None and monitor.sim_time_s is None:
-                # e.g. a simulator still waiting for a reader gone (its nodes had ready_timeout_s to come up)
+            elif stall_timeout_s and monitor is not None and not monitor.stepping_started:
+                # no step yet: the simulator still waiting for a reader gone, or at the start-up handshake of t0 while
+                # the controllers build their missions (tens of seconds on a loaded machine): its nodes had
+                # ready_timeout_s to come up
                 if now - all_started > ready_timeout_s + stall_timeout_s:
                     reason, code = (f"stalled: the sim time has not started {now - all_started:.0f} s of wall "
                                     f"time after every node was started (--stall-timeout {stall_timeout_s:g})"), 1
