@@ -27,7 +27,7 @@ from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 
-pytestmark = pytest.mark.slow(seconds=150)  # started first (tests/conftest.py)
+pytestmark = pytest.mark.slow(seconds=230)  # started first (tests/conftest.py)
 
 FAKE_NODE = r'''
 """Throwaway rclpy node: ticks at 50 Hz, optionally publishes /clock and mission progress,
