@@ -1,8 +1,9 @@
-"""bb2-analyze: the figures and numbers of a recorded BB2 run (one bag, or two bags compared).
+"""bb2-analyze: the figures and numbers of a recorded BB2 run (one bag, or two bags compared), or of a fleet.
 
 Usage::
 
     bb2-analyze BAG [BAG2] [--out DIR] [--mission FILE.yaml] [--maneuver NAME] [--label A --label B]
+    bb2-analyze FLEET_DIR | BAG BAG BAG ...                      # a fleet: every vehicle, side by side
 
 ``BAG`` is a rosbag2 bag directory (metadata.yaml + .mcap, ours or any rosbag2 MCAP with the contract's
 topics) or a bare ``.mcap``.  A bag whose recorder was killed (no summary) is read up to its last complete
@@ -10,6 +11,11 @@ chunk and the report says so.  Output (``--out``, default ``<BAG>/analysis/``): 
 (:mod:`bb2_tools.analysis_plots`), ``report.html`` (one self-contained file, :mod:`bb2_tools.report`) and
 ``figures.json``; the figures are also printed.  With two bags the plots overlay both runs and every
 figure is printed as ``A``, ``B`` and ``B - A``.
+
+A fleet (``FLEET_DIR``: a folder of boat bags, as ``fleet.launch.py`` writes ``<bag_dir>/fleet_<date>/<boat>/``; or
+three bags or more, e.g. the runs of ``bb2-launch --namespace``): every vehicle is analysed alone (its label: its
+folder's name), its figures printed and its report written into ``<out>/<label>/``, then one table of every figure
+with a column per vehicle; ``<out>/figures.json`` holds them all (default ``<out>``: ``<FLEET_DIR>/analysis/``).
 
 This module is the command line, its printout and its files: what is read from a bag is
 :mod:`bb2_tools.bag_run` (:func:`~bb2_tools.bag_run.read_bag`), the figures and their definitions are
@@ -23,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -61,7 +68,46 @@ def comparison_lines(a: Analysis, b: Analysis) -> list[str]:
     return out
 
 
+def fleet_lines(analyses: Sequence[Analysis]) -> list[str]:
+    """The printout of a fleet: every named figure of any vehicle, one column per vehicle (blank where a vehicle
+    has no such figure)."""
+    labels = [a.label for a in analyses]
+    names = list(dict.fromkeys(k for a in analyses for k in a.named_figures))
+    out = [f"fleet  {len(analyses)} vehicles: {', '.join(labels)}",
+           f"  {'figure':<44s} " + " ".join(f"{lb[:12]:>12s}" for lb in labels)]
+    for k in names:
+        shown = {a.label: format_figure(k, a.named_figures[k]) for a in analyses if k in a.named_figures}
+        label, _, unit = next(iter(shown.values()))
+        out.append(f"  {label:<44s} " + " ".join(f"{shown[lb][1] if lb in shown else '':>12s}" for lb in labels)
+                   + f" {unit}")
+    return out
+
+
+def fleet_bags(path: Path) -> list[Path] | None:
+    """The boat bags of a fleet folder (its subfolders that hold a bag: metadata.yaml or an .mcap), sorted; None when
+    ``path`` is itself a bag or holds no bag folders."""
+    if not path.is_dir() or (path / "metadata.yaml").is_file() or any(path.glob("*.mcap")):
+        return None
+    boats = sorted(d for d in path.iterdir()
+                   if d.is_dir() and ((d / "metadata.yaml").is_file() or any(d.glob("*.mcap"))))
+    return boats or None
+
+
 # ------------------------------------------------------------------------------------------ outputs
+def write_fleet_outputs(analyses: Sequence[Analysis], out_dir: str | Path) -> dict[str, Path]:
+    """Every vehicle's outputs (:func:`write_outputs`) into ``out_dir/<label>/`` and the fleet's figures.json
+    (label -> source, figures, warnings, end) into ``out_dir``; returns label (and ``figures_json``) -> file."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {a.label: write_outputs([a], out / a.label)["report"] for a in analyses}
+    doc = {a.label: {"source": str(a.run.source), "figures": a.named_figures, "warnings": a.warnings,
+                     "end": a.figures.end.as_dict()} for a in analyses}
+    fj = out / "figures.json"
+    fj.write_text(json.dumps(doc, indent=1, default=float, allow_nan=True))
+    files["figures_json"] = fj
+    return files
+
+
 def write_outputs(analyses: Sequence[Analysis], out_dir: str | Path) -> dict[str, Path]:
     """PNG figures, figures.json and report.html into ``out_dir``; returns name -> file."""
     from bb2_tools import analysis_plots, report
@@ -85,7 +131,8 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="bb2-analyze", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("bags", nargs="+", type=Path, metavar="BAG",
-                   help="bag directory or .mcap; a second BAG is overlaid and compared")
+                   help="bag directory or .mcap; a second BAG is overlaid and compared; a folder of boat bags (or "
+                        "three bags or more) is a fleet: every vehicle side by side")
     p.add_argument("--out", type=Path, default=None, help="output directory (default <BAG>/analysis/)")
     p.add_argument("--mission", default=None, help="mission YAML (or shipped name) for the terrain and path")
     p.add_argument("--maneuver", default=None,
@@ -115,12 +162,14 @@ def _main(argv: Sequence[str] | None) -> int:
         for b in args.bags:
             if not b.exists():
                 raise AnalysisError(f"no bag at {b} (expected a bag directory or a .mcap file)")
+        boats = fleet_bags(args.bags[0]) if len(args.bags) == 1 else None
+        fleet = boats is not None or len(args.bags) > 2
+        if fleet:
+            return _fleet(args, boats or args.bags)
         if not args.no_report:  # before the analysis: a folder that does not take data, or a report already there
             out = _output_dir(args)
             for name in ("report.html", "figures.json"):
                 check_output_file(out / name, overwrite=args.overwrite, what="output file")
-        if len(args.bags) > 2:
-            raise AnalysisError(f"give one or two bags, got {len(args.bags)}")
         labels = list(args.label or [])
         if len(labels) > len(args.bags):
             raise AnalysisError(f"{len(labels)} --label for {len(args.bags)} bag(s)")
@@ -158,6 +207,46 @@ def _main(argv: Sequence[str] | None) -> int:
         out = _output_dir(args)
         files = write_outputs(analyses, out)
         print(f"bb2-analyze: report {files['report']} ({len(files) - 2} figures in {out})")
+    return 0
+
+
+def _fleet(args: argparse.Namespace, bags: Sequence[Path]) -> int:
+    """A fleet: every vehicle's figures and report, then the table of all (exit codes as :func:`main`)."""
+    try:
+        labels = list(args.label or [])
+        if len(labels) > len(bags):
+            raise AnalysisError(f"{len(labels)} --label for {len(bags)} bag(s)")
+        labels += [b.name if b.is_dir() else b.stem for b in bags[len(labels):]]
+        if len(set(labels)) != len(labels):
+            raise AnalysisError(f"the vehicles' labels must differ (give --label for each): {labels}")
+        if args.out is not None:
+            out = args.out
+        elif len(args.bags) == 1:  # a fleet folder: its analysis beside its boats
+            out = args.bags[0] / "analysis"
+        else:  # bags of their own (bb2-launch --namespace runs): beside them
+            out = Path(os.path.commonpath([b.resolve().parent for b in bags])) / "fleet_analysis"
+        if not args.no_report:
+            for name in [f"{lb}/report.html" for lb in labels] + ["figures.json"]:
+                check_output_file(out / name, overwrite=args.overwrite, what="output file")
+        ms = json.loads(args.maneuver_settings) if args.maneuver_settings else None
+        analyses = [analyze(read_bag(b, lb), mission=args.mission, maneuver=args.maneuver, maneuver_settings=ms)
+                    for b, lb in zip(bags, labels)]
+    except (AnalysisError, BagError) as exc:
+        print(f"bb2-analyze: error: {exc}", file=sys.stderr)
+        return 2
+    except json.JSONDecodeError as exc:
+        print(f"bb2-analyze: error: --maneuver-settings is not JSON: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"bb2-analyze: error: {os_error_line(exc)}", file=sys.stderr)
+        return 2
+    for a in analyses:
+        print("\n".join(figure_lines(a)))
+    print("\n".join(fleet_lines(analyses)))
+    if not args.no_report:
+        files = write_fleet_outputs(analyses, out)
+        print(f"bb2-analyze: fleet figures {files['figures_json']}; reports "
+              + ", ".join(str(files[a.label]) for a in analyses))
     return 0
 
 

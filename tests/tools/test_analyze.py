@@ -302,6 +302,44 @@ def test_two_bags_overlay_and_differences(bags, capsys, tmp_path):
     assert cmp["max_horizontal_m"]["B_minus_A"] == pytest.approx(s2.max_horizontal_m - s1.max_horizontal_m, abs=1e-9)
 
 
+def test_a_fleet_folder_reports_every_vehicle_as_alone_and_side_by_side(bags, capsys, tmp_path):
+    """Issue 13, point 4: ``bb2-analyze FLEET_DIR`` (a folder of boat bags, as fleet.launch.py writes them) prints
+    every vehicle's figures as ``bb2-analyze`` of its bag alone does, then one table with a column per vehicle;
+    each vehicle's report goes into ``analysis/<boat>/`` and figures.json holds them all.  Three bags or more
+    given one by one are a fleet too."""
+    import json
+
+    fleet = tmp_path / "fleet_20261203_120000"
+    fleet.mkdir()
+    boats = {"boat1": "circle", "boat2": "circle_noad", "boat3": "canyon"}
+    for name, key in boats.items():
+        shutil.copytree(bags[key][0], fleet / name)
+    alone = {}
+    for name, key in boats.items():
+        assert an.main([str(bags[key][0]), "--no-report", "--label", name]) == 0
+        alone[name] = capsys.readouterr().out.splitlines()[1:]  # after the label and source line
+    assert an.main([str(fleet)]) == 0
+    text = capsys.readouterr().out
+    for name in boats:
+        block = text.split(f"{name}: {fleet / name}\n", 1)[1].splitlines()[:len(alone[name])]
+        assert block == alone[name], name
+    table = text.split("fleet  3 vehicles: boat1, boat2, boat3\n", 1)[1].splitlines()
+    assert table[0].split() == ["figure", "boat1", "boat2", "boat3"]
+    row = next(ln.split() for ln in table if ln.split()[0] == "rms_vertical")
+    for name, value in zip(boats, row[1:4]):
+        s = _summary_of(*bags[boats[name]][1:])
+        assert float(value) == pytest.approx(s.rms_vertical_m, abs=1e-4), name
+    assert row[4] == "m" and row[1] != row[2]  # the vehicles really differ
+    doc = json.loads((fleet / "analysis" / "figures.json").read_text())
+    assert list(doc) == list(boats) and all((fleet / "analysis" / b / "report.html").is_file() for b in boats)
+    assert an.main([str(fleet)]) == 2  # the reports are there: not overwritten without --overwrite
+    err = capsys.readouterr().err
+    assert "report.html exists (give --overwrite" in err and len(err.strip().splitlines()) == 1, err
+    spread = [str(fleet / b) for b in boats]
+    assert an.main([*spread, "--no-report"]) == 0
+    assert "fleet  3 vehicles: boat1, boat2, boat3" in capsys.readouterr().out
+
+
 def test_truncated_bag_read_to_last_chunk(bags, tmp_path, capsys):
     bag, runner, traj = bags["circle"]
     mcap = next(bag.glob("*.mcap"))
