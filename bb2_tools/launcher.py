@@ -12,7 +12,8 @@ It stops the graph cleanly when the mission ends (``--end-at``: the progress rea
 simulator reports the end of the mission duration on ``/bb2/status`` or exits with code 0), when
 the simulator reports that it stopped (diverged), on Ctrl-C (SIGINT) or SIGTERM, after
 ``--timeout``, or when a node dies.  Stopping sends SIGINT to the process groups, then SIGTERM, then SIGKILL
-after grace periods; the recorder is stopped last and gets the longest grace so it finishes its
+after grace periods (at the end of the mission, once the recorder holds the last step: :func:`caught_up`); the
+recorder is stopped last and gets the longest grace so it finishes its
 bag.  A node that dies is reported with its exit code or signal and its last log lines, and is
 handled by its restart policy (``--restart NODE=stop|restart[:N]|ignore``; default ``stop``).
 
