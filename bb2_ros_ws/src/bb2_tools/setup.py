@@ -1,10 +1,5 @@
-"""ament_python packaging of the bb2_tools Python package for `colcon build` (ROS 2 Jazzy).
-
-The code is not copied here: ``bb2_tools/`` in this directory is a symlink to the top-level source
-(``../../../bb2_tools``; see bb2_ros_ws/README.md).  The name, version, description, maintainer and license
-come from package.xml, the rest is ``bb2_ros_ws/ament_setup.py``; executables are installed under
-``lib/bb2_tools`` (setup.cfg) so that ``ros2 run bb2_tools <executable>`` finds them.
-"""
+"""ament_python packaging of bb2_tools (`colcon build`, ROS 2 Jazzy): ``bb2_tools/`` here links to the top-level
+source; name, version, description, maintainer and license come from package.xml (``../../ament_setup.py``)."""
 import runpy
 from pathlib import Path
 
