@@ -86,22 +86,28 @@ def fleet_lines(analyses: Sequence[Analysis]) -> list[str]:
 def fleet_bags(path: Path) -> list[Path] | None:
     """The boat bags of a fleet folder (its subfolders that hold a bag: metadata.yaml or an .mcap), sorted; None when
     ``path`` is itself a bag or holds no bag folders."""
-    if not path.is_dir() or (path / "metadata.yaml").is_file() or any(path.glob("*.mcap")):
+    def holds_bag(d: Path) -> bool:
+        return (d / "metadata.yaml").is_file() or any(d.glob("*.mcap"))
+
+    if not path.is_dir() or holds_bag(path):
         return None
-    boats = sorted(d for d in path.iterdir()
-                   if d.is_dir() and ((d / "metadata.yaml").is_file() or any(d.glob("*.mcap"))))
-    return boats or None
+    return sorted(d for d in path.iterdir() if d.is_dir() and holds_bag(d)) or None
 
 
 # ------------------------------------------------------------------------------------------ outputs
+def _figures_doc(analyses: Sequence[Analysis]) -> dict:
+    """figures.json's per-run part: label -> source, figures, warnings, end."""
+    return {a.label: {"source": str(a.run.source), "figures": a.named_figures, "warnings": a.warnings,
+                      "end": a.figures.end.as_dict()} for a in analyses}
+
+
 def write_fleet_outputs(analyses: Sequence[Analysis], out_dir: str | Path) -> dict[str, Path]:
     """Every vehicle's outputs (:func:`write_outputs`) into ``out_dir/<label>/`` and the fleet's figures.json
     (label -> source, figures, warnings, end) into ``out_dir``; returns label (and ``figures_json``) -> file."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {a.label: write_outputs([a], out / a.label)["report"] for a in analyses}
-    doc = {a.label: {"source": str(a.run.source), "figures": a.named_figures, "warnings": a.warnings,
-                     "end": a.figures.end.as_dict()} for a in analyses}
+    doc = _figures_doc(analyses)
     fj = out / "figures.json"
     fj.write_text(json.dumps(doc, indent=1, default=float, allow_nan=True))
     files["figures_json"] = fj
@@ -115,8 +121,7 @@ def write_outputs(analyses: Sequence[Analysis], out_dir: str | Path) -> dict[str
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = analysis_plots.plot_analyses(analyses, out)
-    doc = {a.label: {"source": str(a.run.source), "figures": a.named_figures, "warnings": a.warnings,
-                     "end": a.figures.end.as_dict()} for a in analyses}
+    doc = _figures_doc(analyses)
     if len(analyses) == 2:
         doc["comparison"] = [{"figure": k, "A": va, "B": vb, "B_minus_A": d}
                              for k, va, vb, d in compare(analyses[0], analyses[1])]
@@ -173,14 +178,7 @@ def _main(argv: Sequence[str] | None) -> int:
         labels = list(args.label or [])
         if len(labels) > len(args.bags):
             raise AnalysisError(f"{len(labels)} --label for {len(args.bags)} bag(s)")
-        ms = None
-        if args.maneuver_settings:
-            try:
-                ms = json.loads(args.maneuver_settings)
-            except json.JSONDecodeError as exc:
-                raise AnalysisError(f"--maneuver-settings is not JSON: {exc}") from None
-            if not isinstance(ms, dict):
-                raise AnalysisError("--maneuver-settings must be a JSON object")
+        ms = _maneuver_settings(args)
         runs = []
         for i, b in enumerate(args.bags):
             label = labels[i] if i < len(labels) else None
@@ -210,6 +208,19 @@ def _main(argv: Sequence[str] | None) -> int:
     return 0
 
 
+def _maneuver_settings(args: argparse.Namespace) -> dict | None:
+    """``--maneuver-settings`` as a dict (None when not given); :class:`AnalysisError` when it is not a JSON object."""
+    if not args.maneuver_settings:
+        return None
+    try:
+        ms = json.loads(args.maneuver_settings)
+    except json.JSONDecodeError as exc:
+        raise AnalysisError(f"--maneuver-settings is not JSON: {exc}") from None
+    if not isinstance(ms, dict):
+        raise AnalysisError("--maneuver-settings must be a JSON object")
+    return ms
+
+
 def _fleet(args: argparse.Namespace, bags: Sequence[Path]) -> int:
     """A fleet: every vehicle's figures and report, then the table of all (exit codes as :func:`main`)."""
     try:
@@ -228,14 +239,11 @@ def _fleet(args: argparse.Namespace, bags: Sequence[Path]) -> int:
         if not args.no_report:
             for name in [f"{lb}/report.html" for lb in labels] + ["figures.json"]:
                 check_output_file(out / name, overwrite=args.overwrite, what="output file")
-        ms = json.loads(args.maneuver_settings) if args.maneuver_settings else None
+        ms = _maneuver_settings(args)
         analyses = [analyze(read_bag(b, lb), mission=args.mission, maneuver=args.maneuver, maneuver_settings=ms)
                     for b, lb in zip(bags, labels)]
     except (AnalysisError, BagError) as exc:
         print(f"bb2-analyze: error: {exc}", file=sys.stderr)
-        return 2
-    except json.JSONDecodeError as exc:
-        print(f"bb2-analyze: error: --maneuver-settings is not JSON: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:
         print(f"bb2-analyze: error: {os_error_line(exc)}", file=sys.stderr)
