@@ -515,11 +515,10 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
 
 
 def recorded_topics(namespace: str = "") -> list[str]:
-    """The topics the graph's recorder records: every contract topic; in a boat's namespace the global ones left
-    out (``/diagnostics``: every boat's statuses; the boat's own are on its ``bb2/status``), as the recorder does."""
-    from bb2_msgs_py.contract import GLOBAL_TOPICS, select_topics
+    """The topics the graph's recorder records (:func:`bb2_tools.recorder.default_topics`)."""
+    from bb2_tools.recorder import default_topics
 
-    return [t.name for t in select_topics() if not (namespace and t.name in GLOBAL_TOPICS)]
+    return [t.name for t in default_topics(namespace)]
 
 
 NAMESPACE_SEGMENT = re.compile(r"[A-Za-z][A-Za-z0-9_]*")

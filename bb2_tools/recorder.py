@@ -190,6 +190,12 @@ def derived_tf_cdr(topic: str, data: bytes, stamp_ns: int, *, odom_frame: str = 
     return tf_static_cdr_from_mountings_cdr(data, stamp_ns)
 
 
+def default_topics(namespace: str = "") -> list[TopicSpec]:
+    """What the recorder records when no topics are given: every contract topic; in a boat's namespace the global
+    ones left out (``/diagnostics``: every boat's statuses; the boat's own are on its ``bb2/status``)."""
+    return [s for s in select_topics() if not (namespace.strip("/") and s.name in GLOBAL_TOPICS)]
+
+
 def step_topics(topics: Sequence[TopicSpec]) -> set[str]:
     """The topics of ``topics`` the simulator publishes once per step: ``/bb2/state_native``, ``/clock`` and its
     sensor topics (odometry, IMU, depth, altitude, plane and propeller states; not the sensor suite's
@@ -562,9 +568,8 @@ def _main(argv: Sequence[str] | None) -> int:
         flush = args.flush_period if args.flush_period is not None else par["flush_period_s"]
         depth = args.depth if args.depth is not None else par["queue_depth"]
         batch = args.batch_period if args.batch_period is not None else par["batch_period_s"]
-        specs = select_topics(topics)
+        specs = select_topics(topics) if topics is not None else default_topics(node.get_namespace())
         if topics is None and node.get_namespace() != "/":  # a boat's recorder records its boat
-            specs = [s for s in specs if s.name not in GLOBAL_TOPICS]
             print(f"bb2-record: in {node.get_namespace()}: not recording {', '.join(GLOBAL_TOPICS)} (every boat's "
                   "statuses; this boat's are in its bb2/status)", flush=True)
         if chunk <= 0 or depth <= 0 or flush < 0 or not 0 <= batch <= 1:
