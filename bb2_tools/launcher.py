@@ -180,7 +180,7 @@ def caught_up(monitor: GraphMonitor, say, *, interrupted=lambda: False, limit_s:
         return True
     t0 = time.monotonic()
     said = False
-    while (monitor.recorder_ack_s or -math.inf) < target - 1e-9:
+    while (-math.inf if monitor.recorder_ack_s is None else monitor.recorder_ack_s) < target - 1e-9:
         waited = time.monotonic() - t0
         if waited > limit_s or interrupted():
             ack = monitor.recorder_ack_s

@@ -284,6 +284,21 @@ def test_format_status_and_exit_causes():
     assert S.exit_cause(-9) == "killed by SIGKILL" and S.exit_cause(3) == "exit code 3"
 
 
+def test_caught_up_takes_an_ack_at_zero_as_an_ack_and_says_a_recorder_that_never_acks():
+    """The end-of-run wait for the recorder: an ack at the last step (even t = 0) ends it at once; no ack at all
+    waits the limit, says how far the recorder got, and returns False."""
+    class Monitor:
+        sim_time_s, recorder_ack_s = 0.0, 0.0
+
+    said: list[str] = []
+    assert L.caught_up(Monitor(), said.append, limit_s=5.0) and said == []
+    Monitor.sim_time_s, Monitor.recorder_ack_s = 12.0, 12.0
+    assert L.caught_up(Monitor(), said.append, limit_s=5.0) and said == []
+    Monitor.recorder_ack_s = None
+    assert not L.caught_up(Monitor(), said.append, limit_s=0.6)
+    assert "(-- s of 12.00 s)" in said[0] and "only to -- s of the last 12.00 s" in said[-1], said
+
+
 def test_supervisor_without_dds_reports_restarts_and_failure(tmp_path):
     """Plain processes: a crashing one is restarted up to N times, then stops the rest."""
     crash = [sys.executable, "-c", "import sys; print('boom line'); sys.exit(4)"]
