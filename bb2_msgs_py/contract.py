@@ -78,6 +78,14 @@ GLOBAL_TOPICS = ("/diagnostics",)
 carries the statuses of every node of every boat (each also on its boat's ``bb2/status``)."""
 
 
+def recorded_in_namespace(topic: str, namespace: str) -> bool:
+    """Whether a recorder records ``topic`` for the boat in ``namespace`` (``''`` or ``'/'``: the root): every
+    contract topic, but a boat of a fleet's recording leaves the global ones out (:data:`GLOBAL_TOPICS`: every
+    boat's statuses; the boat's own are on its ``bb2/status``).  The recorder's default topics, and the topics
+    whose readers a boat's simulator waits for before its first step."""
+    return not (namespace.strip("/") and topic in GLOBAL_TOPICS)
+
+
 RECORDER_ACK_WINDOW = 10
 """Steps a lockstep simulator with a recorder may run ahead of the recorder's acknowledgement (its parameter
 ``recorder_ack_window``, as ``bb2-launch`` and the launch files set it): a stalled recorder stops the graph within

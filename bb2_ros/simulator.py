@@ -125,7 +125,8 @@ from bb2_msgs_py import scene_markers
 from bb2_msgs_py.contract import SCENE_TOPIC, SEA_SURFACE_TOPIC
 from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS, mountings_json, sample_messages
 from bb2_msgs_py.contract import (FRAME_BASE_LINK, FRAME_ODOM, PLANE_JOINTS, PROPELLER_JOINT, frame_prefix,
-                                  message_class, node_topic_name, qos_profile, vehicle_frame)
+                                  message_class, node_topic_name, qos_profile, recorded_in_namespace,
+                                  vehicle_frame)
 from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.state import VehicleState
 
@@ -470,7 +471,9 @@ class Simulator(Node):
             if not self.reader_node:
                 return self.count_subscribers(name)
             return sum(i.node_name == self.reader_node for i in self.get_subscriptions_info_by_topic(name))
-        unread = [t for t in self.pub if t not in LATCHED_OUT and readers(t) == 0] if self.wait_for_readers else []
+        # (a boat of a fleet: its recorder leaves the global topics out, so their readers are not waited for)
+        unread = [t for t in self.pub if t not in LATCHED_OUT and recorded_in_namespace(t, self.get_namespace())
+                  and readers(t) == 0] if self.wait_for_readers else []
         now = time.monotonic()
         if self.wait_for_readers and not unread:  # every topic read: let the readers' side match too
             self._readers_since = self._readers_since or now

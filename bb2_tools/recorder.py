@@ -52,7 +52,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, GLOBAL_TOPICS, SCENE_TOPIC, SIM, ContractError, TopicSpec,
-                                  message_class, node_topic_name, select_topics)
+                                  message_class, node_topic_name, recorded_in_namespace, select_topics)
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros.node_common import node_frame, restore_signals, stop_signals, take_all, time_msg
@@ -193,7 +193,7 @@ def derived_tf_cdr(topic: str, data: bytes, stamp_ns: int, *, odom_frame: str = 
 def default_topics(namespace: str = "") -> list[TopicSpec]:
     """What the recorder records when no topics are given: every contract topic; in a boat's namespace the global
     ones left out (``/diagnostics``: every boat's statuses; the boat's own are on its ``bb2/status``)."""
-    return [s for s in select_topics() if not (namespace.strip("/") and s.name in GLOBAL_TOPICS)]
+    return [s for s in select_topics() if recorded_in_namespace(s.name, namespace)]
 
 
 def step_topics(topics: Sequence[TopicSpec]) -> set[str]:

@@ -655,6 +655,10 @@ def test_bb2_launch_boats_in_namespaces_share_a_domain_without_crosstalk(tmp_pat
         assert p.returncode == 0, (ns, errs[ns][-3000:])
         assert f"namespace /{ns}" in errs[ns] and "mission complete" in errs[ns], errs[ns][-3000:]
         assert "another bb2-launch runs" not in errs[ns]  # boats in namespaces share a domain on purpose
+        # the boat's first step waited for its recorder, not for a reader of /diagnostics (which a boat's recorder
+        # leaves out): before, every namespaced boat started 30 s late, at the start-up timeout
+        log = (tmp_path / ns / "logs" / "simulator.log").read_text()
+        assert "starting after" not in log and "no reader of" not in log, log[-2000:]
     for ns, mission in boats.items():
         bag = tmp_path / ns
         ref = library_trajectory(mission)
