@@ -123,6 +123,20 @@ def frame_prefix(namespace: str) -> str:
     return f"{ns}/" if ns else ""
 
 
+NAMESPACE_SEGMENT = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+
+
+def check_namespace(namespace: str, what: str = "namespace") -> str:
+    """``namespace`` without its slashes (``''`` for the root namespace); a :class:`ContractError` naming the rule
+    (and ``what`` was given) when it is not a ROS 2 namespace: segments of letters, digits and underscores, each
+    starting with a letter."""
+    ns = namespace.strip().strip("/")
+    if ns and not all(NAMESPACE_SEGMENT.fullmatch(p) for p in ns.split("/")):
+        raise ContractError(f"{what} must be a ROS 2 namespace (segments of letters, digits and '_', each "
+                            f"starting with a letter, separated by '/'), got {namespace!r}")
+    return ns
+
+
 def vehicle_frame(frame: str, prefix: str = "") -> str:
     """``frame`` of the vehicle whose frame ids carry ``prefix`` (:func:`frame_prefix`); a world frame
     (:data:`WORLD_FRAMES`) is returned as it is."""

@@ -3,7 +3,7 @@
 Usage::
 
     bb2-analyze BAG [BAG2] [--out DIR] [--mission FILE.yaml] [--maneuver NAME] [--label A --label B]
-    bb2-analyze FLEET_DIR | BAG BAG BAG ...                      # a fleet: every vehicle, side by side
+    bb2-analyze FLEET_BAG | FLEET_DIR | BAG BAG BAG ...          # a fleet: every vehicle, side by side
 
 ``BAG`` is a rosbag2 bag directory (metadata.yaml + .mcap, ours or any rosbag2 MCAP with the contract's
 topics) or a bare ``.mcap``.  A bag whose recorder was killed (no summary) is read up to its last complete
@@ -12,10 +12,11 @@ chunk and the report says so.  Output (``--out``, default ``<BAG>/analysis/``): 
 ``figures.json``; the figures are also printed.  With two bags the plots overlay both runs and every
 figure is printed as ``A``, ``B`` and ``B - A``.
 
-A fleet (``FLEET_DIR``: a folder of boat bags, as ``fleet.launch.py`` writes ``<bag_dir>/fleet_<date>/<boat>/``; or
-three bags or more, e.g. the runs of ``bb2-launch --namespace``): every vehicle is analysed alone (its label: its
-folder's name), its figures printed and its report written into ``<out>/<label>/``, then one table of every figure
-with a column per vehicle; ``<out>/figures.json`` holds them all (default ``<out>``: ``<FLEET_DIR>/analysis/``).
+A fleet (``FLEET_BAG``: the one bag of a fleet's recorder, every boat under its namespace, as ``fleet.launch.py``
+writes ``<bag_dir>/fleet_<date>/``; ``FLEET_DIR``: a folder of boat bags; or three bags or more, e.g. the runs of
+``bb2-launch --namespace``): every vehicle is analysed alone (its label: its namespace, or its folder's name), its
+figures printed and its report written into ``<out>/<label>/``, then one table of every figure with a column per
+vehicle; ``<out>/figures.json`` holds them all (default ``<out>``: ``<FLEET_BAG or FLEET_DIR>/analysis/``).
 
 This module is the command line, its printout and its files: what is read from a bag is
 :mod:`bb2_tools.bag_run` (:func:`~bb2_tools.bag_run.read_bag`), the figures and their definitions are
@@ -94,6 +95,19 @@ def fleet_bags(path: Path) -> list[Path] | None:
     return sorted(d for d in path.iterdir() if d.is_dir() and holds_bag(d)) or None
 
 
+def fleet_vehicles(path: Path) -> list[str] | None:
+    """The boats of a fleet's bag (one recorder for all, every boat's topics under its namespace), sorted; None for
+    any other bag (or no readable bag: read_bag says why)."""
+    from bb2_tools.bagfile import BagReader
+
+    try:
+        reader = BagReader(path)
+    except BagError:
+        return None
+    own = "/bb2/state_native" in reader.topics or "/bb2/odom" in reader.topics
+    return reader.vehicles if len(reader.vehicles) > 1 and not own else None
+
+
 # ------------------------------------------------------------------------------------------ outputs
 def _figures_doc(analyses: Sequence[Analysis]) -> dict:
     """figures.json's per-run part: label -> source, figures, warnings, end."""
@@ -168,9 +182,11 @@ def _main(argv: Sequence[str] | None) -> int:
             if not b.exists():
                 raise AnalysisError(f"no bag at {b} (expected a bag directory or a .mcap file)")
         boats = fleet_bags(args.bags[0]) if len(args.bags) == 1 else None
-        fleet = boats is not None or len(args.bags) > 2
-        if fleet:
-            return _fleet(args, boats or args.bags)
+        vehicles = fleet_vehicles(args.bags[0]) if len(args.bags) == 1 and boats is None else None
+        if vehicles is not None:
+            return _fleet(args, [(args.bags[0], v) for v in vehicles])
+        if boats is not None or len(args.bags) > 2:
+            return _fleet(args, [(b, None) for b in boats or args.bags])
         if not args.no_report:  # before the analysis: a folder that does not take data, or a report already there
             out = _output_dir(args)
             for name in ("report.html", "figures.json"):
@@ -221,27 +237,29 @@ def _maneuver_settings(args: argparse.Namespace) -> dict | None:
     return ms
 
 
-def _fleet(args: argparse.Namespace, bags: Sequence[Path]) -> int:
-    """A fleet: every vehicle's figures and report, then the table of all (exit codes as :func:`main`)."""
+def _fleet(args: argparse.Namespace, sources: Sequence[tuple[Path, str | None]]) -> int:
+    """A fleet: every vehicle's figures and report, then the table of all (exit codes as :func:`main`).
+    ``sources``: (bag, vehicle: None for a boat's own bag, its namespace in a fleet's bag)."""
+    bags = [b for b, _v in sources]
     try:
         labels = list(args.label or [])
         if len(labels) > len(bags):
-            raise AnalysisError(f"{len(labels)} --label for {len(bags)} bag(s)")
-        labels += [b.name if b.is_dir() else b.stem for b in bags[len(labels):]]
+            raise AnalysisError(f"{len(labels)} --label for {len(bags)} vehicle(s)")
+        labels += [v or (b.name if b.is_dir() else b.stem) for b, v in sources[len(labels):]]
         if len(set(labels)) != len(labels):
             raise AnalysisError(f"the vehicles' labels must differ (give --label for each): {labels}")
         if args.out is not None:
             out = args.out
-        elif len(args.bags) == 1:  # a fleet folder: its analysis beside its boats
-            out = args.bags[0] / "analysis"
+        elif len(args.bags) == 1:  # a fleet's bag or folder: its analysis in it
+            out = _output_dir(args)
         else:  # bags of their own (bb2-launch --namespace runs): beside them
             out = Path(os.path.commonpath([b.resolve().parent for b in bags])) / "fleet_analysis"
         if not args.no_report:
             for name in [f"{lb}/report.html" for lb in labels] + ["figures.json"]:
                 check_output_file(out / name, overwrite=args.overwrite, what="output file")
         ms = _maneuver_settings(args)
-        analyses = [analyze(read_bag(b, lb), mission=args.mission, maneuver=args.maneuver, maneuver_settings=ms)
-                    for b, lb in zip(bags, labels)]
+        analyses = [analyze(read_bag(b, lb, v), mission=args.mission, maneuver=args.maneuver, maneuver_settings=ms)
+                    for (b, v), lb in zip(sources, labels)]
     except (AnalysisError, BagError) as exc:
         print(f"bb2-analyze: error: {exc}", file=sys.stderr)
         return 2

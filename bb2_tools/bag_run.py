@@ -182,15 +182,21 @@ def _series(rows: list[tuple[int, Sequence[float]]], k: int) -> Series:
     return Series(ns[keep] * 1e-9, v, ns[keep])
 
 
-def read_bag(path: str | Path, label: str | None = None) -> BagRun:
-    """Decode the contract topics of a bag (see the module docstring); :class:`AnalysisError` if unusable."""
+def read_bag(path: str | Path, label: str | None = None, vehicle: str | None = None) -> BagRun:
+    """Decode the contract topics of a bag (see the module docstring); :class:`AnalysisError` if unusable.
+    ``vehicle``: one boat of a fleet's bag (:class:`BagReader`); a fleet's bag of one boat is read as that boat."""
     from bb2_msgs_py import conversions as cv
 
     p = Path(path)
     if not p.exists():
         raise AnalysisError(f"no bag at {p} (expected a bag directory or a .mcap file)")
     try:
-        reader = BagReader(p)
+        reader = BagReader(p, vehicle)
+        if vehicle is None and T_STATE not in reader.topics and T_ODOM not in reader.topics:
+            if len(reader.vehicles) == 1:
+                reader = BagReader(p, reader.vehicles[0])
+            elif reader.vehicles:
+                raise AnalysisError(f"{p}: a fleet's bag ({', '.join(reader.vehicles)}): read one vehicle at a time")
     except BagError as exc:
         raise AnalysisError(f"{p}: not a readable bag: {exc}") from None
     topics = reader.topics
@@ -278,7 +284,7 @@ def read_bag(path: str | Path, label: str | None = None) -> BagRun:
         path_source = T_PATH
     md = reader.metadata or {}
     run = BagRun(
-        source=p, label=label or (p.name if p.is_dir() else p.stem), topics=topics,
+        source=p, label=label or reader.vehicle or (p.name if p.is_dir() else p.stem), topics=topics,
         counts=reader.message_counts, truncated=reader.truncated, problem=reader.problem,
         custom_data={str(k): str(v) for k, v in (md.get("custom_data") or {}).items()},
         state_source="state_native" if use_native else "odometry", t=states.v[:, 0].copy(), x=x,

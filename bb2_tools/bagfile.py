@@ -473,9 +473,13 @@ class BagReader:
 
     A file without a valid footer and summary (the recorder was killed) is read linearly up to its
     last complete chunk; :attr:`truncated` is then ``True`` and :attr:`problem` says what ended it.
+
+    A fleet's bag (one recorder for several boats: ``/boat1/bb2/odom``, ``/boat2/bb2/odom``, one ``/tf``) is read
+    one boat at a time with ``vehicle``: its topics under the contract's names (``/bb2/odom``), beside the bag's
+    global ones (``/tf``, ``/tf_static``, ``/diagnostics``), the other boats' left out; :attr:`vehicles` lists them.
     """
 
-    def __init__(self, path: str | os.PathLike):
+    def __init__(self, path: str | os.PathLike, vehicle: str | None = None):
         p = Path(path)
         self.metadata: dict[str, Any] | None = None
         if p.is_dir():
@@ -499,6 +503,42 @@ class BagReader:
         self._counts: dict[int, int] = {}
         self._summary = None
         self._scan_structure()
+        self.vehicle = ""
+        self._real: dict[str, str] = {}  # a vehicle's view: its topic name -> the name in the bag
+        out = set()
+        for c in self._channels.values():
+            for t in ("/bb2/state_native", "/bb2/odom"):
+                if c.topic.endswith(t) and len(c.topic) > len(t) + 1:
+                    out.add(c.topic[:-len(t)].strip("/"))
+        self.vehicles: list[str] = sorted(out)
+        """The boats of a fleet's bag (namespaces with a ``/NS/bb2/state_native`` or ``/NS/bb2/odom``), sorted; ``[]``
+        for a one-boat bag."""
+        if vehicle is not None and vehicle.strip("/"):
+            self._view(vehicle.strip("/"))
+
+    def _view(self, vehicle: str) -> None:
+        """Keep ``vehicle``'s channels (renamed to the contract's names) and the global ones."""
+        others = [f"/{v}/" for v in self.vehicles]
+        if f"/{vehicle}/" not in others:
+            raise BagError(f"{self.mcap_path}: no vehicle {vehicle!r} in the bag (it has {self.vehicles or 'none'})")
+        self.vehicle = vehicle
+        view: dict[int, Channel] = {}
+        for cid, c in self._channels.items():
+            if c.topic.startswith(f"/{vehicle}/"):
+                name = c.topic[len(vehicle) + 1:]
+                self._real[name] = c.topic
+                view[cid] = dataclasses.replace(c, topic=name)
+            elif not any(c.topic.startswith(o) for o in others):
+                view[cid] = c
+        self._channels = view
+
+    def view_topic(self, bag_topic: str) -> str | None:
+        """The name a topic of the bag has in this reader (None: another boat's)."""
+        if not self.vehicle:
+            return bag_topic
+        if bag_topic.startswith(f"/{self.vehicle}/"):
+            return bag_topic[len(self.vehicle) + 1:]
+        return None if any(bag_topic.startswith(f"/{v}/") for v in self.vehicles) else bag_topic
 
     # -- structure
     def _scan_structure(self) -> None:
@@ -607,20 +647,27 @@ class BagReader:
         unknown = sel - set(self.topics)
         if unknown:
             raise BagError(f"topics not in the bag: {sorted(unknown)} (bag has {sorted(self.topics)})")
+        return {self._real.get(t, t) for t in sel}
+
+    def _selected(self, sel: set[str] | None) -> set[str] | None:
+        """What to read of the file: ``sel`` (names in the bag), or every channel of this reader's view."""
+        if sel is None and self.vehicle:
+            return {self._real.get(c.topic, c.topic) for c in self._channels.values()}
         return sel
 
     def raw_messages(self, topics: Iterable[str] | str | None = None, *,
                      file_order: bool = False) -> Iterator[RawMessage]:
         """Serialized messages (log-time order for a complete bag unless ``file_order``, the order they were
         written in; file order for a truncated one)."""
-        sel = self._select(topics)
+        sel = self._selected(self._select(topics))
+        name = self.view_topic
         if self._summary is not None:
             from mcap.reader import make_reader
 
             with open(self.mcap_path, "rb") as f:
                 for schema, channel, msg in make_reader(f).iter_messages(
                         topics=None if sel is None else sorted(sel), log_time_order=not file_order):
-                    yield RawMessage(channel.topic, msg.log_time, msg.publish_time, msg.data,
+                    yield RawMessage(name(channel.topic), msg.log_time, msg.publish_time, msg.data,
                                      schema.name if schema else "", msg.sequence)
             return
         channels: dict[int, Channel] = {}
@@ -635,7 +682,7 @@ class BagReader:
                 if ch is None or (sel is not None and ch.topic not in sel):
                     continue
                 sc = schemas.get(ch.schema_id)
-                yield RawMessage(ch.topic, rec.log_time, rec.publish_time, rec.data, sc.name if sc else "",
+                yield RawMessage(name(ch.topic), rec.log_time, rec.publish_time, rec.data, sc.name if sc else "",
                                  rec.sequence)
 
     def messages(self, topics: Iterable[str] | str | None = None) -> Iterator[tuple[str, int, Any]]:
@@ -949,6 +996,9 @@ def bag_gaps(reader: "BagReader") -> list[Gap] | None:
             gaps = [Gap(**d) for d in json.loads(custom[GAPS_KEY])]
         except (ValueError, TypeError) as exc:
             raise BagError(f"{reader.mcap_path}: custom_data {GAPS_KEY} is not a gap list: {exc}") from None
+        if reader.vehicle:  # one boat of a fleet's bag: its gaps, under its reader's names
+            gaps = [dataclasses.replace(g, topic=reader.view_topic(g.topic)) for g in gaps
+                    if reader.view_topic(g.topic) is not None]
     elif any(t.dds_sequence for t in reader.topic_infos()):
         gaps = SequenceGaps.from_reader(reader).gaps
     else:

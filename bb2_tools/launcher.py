@@ -54,7 +54,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -521,17 +520,16 @@ def recorded_topics(namespace: str = "") -> list[str]:
     return [t.name for t in default_topics(namespace)]
 
 
-NAMESPACE_SEGMENT = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
-
-
 def check_namespace(namespace: str) -> str:
     """``namespace`` without its slashes (``''`` for the root namespace); a :class:`LaunchError` naming the rule when
-    it is not a ROS 2 namespace (segments of letters, digits and underscores, each starting with a letter)."""
-    ns = namespace.strip().strip("/")
-    if ns and not all(NAMESPACE_SEGMENT.fullmatch(p) for p in ns.split("/")):
-        raise LaunchError(f"--namespace must be a ROS 2 namespace (segments of letters, digits and '_', each "
-                          f"starting with a letter, separated by '/'), got {namespace!r}")
-    return ns
+    it is not a ROS 2 namespace (:func:`bb2_msgs_py.contract.check_namespace`)."""
+    from bb2_msgs_py.contract import ContractError
+    from bb2_msgs_py.contract import check_namespace as check
+
+    try:
+        return check(namespace, "--namespace")
+    except ContractError as exc:
+        raise LaunchError(str(exc)) from None
 
 
 def namespace_args(namespace: str) -> list[str]:

@@ -48,11 +48,13 @@ import math
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
 from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, GLOBAL_TOPICS, SCENE_TOPIC, SIM, ContractError, TopicSpec,
-                                  message_class, node_topic_name, recorded_in_namespace, select_topics)
+                                  check_namespace, message_class, node_topic_name, recorded_in_namespace,
+                                  select_topics)
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros.node_common import node_frame, restore_signals, stop_signals, take_all, time_msg
@@ -261,12 +263,36 @@ def subscription_qos(spec: TopicSpec, depth: int, *, best_effort: bool = False):
     return q
 
 
+@dataclass
+class Vehicle:
+    """One boat a recorder records: where its topics are on the graph and in the bag, its clock, its acks.
+
+    ``prefix`` ``""``: the boat of the recorder's own namespace (topics named relative to it, written under the
+    contract's names: a boat's bag reads as a lone boat's); ``"/boat1"``: a boat of a fleet recorded by one
+    recorder (``--boats``), its topics ``/boat1/bb2/...`` and ``/boat1/clock`` on the graph and in the bag."""
+
+    prefix: str
+    odom_frame: str
+    acks: StepAcks
+    ack_pub: Any = None
+    sim_ns: int = 0  #: the last of its /clock taken (ROS time 0 until the first, as rclpy's time source)
+
+    def graph_name(self, name: str) -> str:
+        """The name the recorder subscribes to (and publishes the boat's ack on)."""
+        return self.prefix + name if self.prefix else node_topic_name(name)
+
+    def bag_name(self, name: str) -> str:
+        return self.prefix + name
+
+
 class Recorder:
-    """Records ``topics`` into ``bag`` from a node of its own (``self.node``)."""
+    """Records ``topics`` into ``bag`` from a node of its own (``self.node``): of the boat in the node's namespace,
+    or (``boats``) of every boat of a fleet, each in its namespace."""
 
     def __init__(self, bag: BagWriter, topics: Sequence[TopicSpec], *, tf_from_odom: bool = True,
                  flush_period_s: float = 1.0, queue_depth: int = 1000, node_name: str = "bb2_recorder",
-                 use_sim_time: bool = False, node=None, acknowledge: bool = True, gap_warn_s: float = 1.0):
+                 use_sim_time: bool = False, node=None, acknowledge: bool = True, gap_warn_s: float = 1.0,
+                 boats: Sequence[str] = ()):
         from rclpy.clock import Clock, ClockType
         from rclpy.node import Node
         from rclpy.serialization import deserialize_message
@@ -278,39 +304,39 @@ class Recorder:
         # /tf from the odometry and /tf_static from the sensor mountings and the scene (map -> the vehicle's odom:
         # boat1/odom for a recorder in /boat1, as the boat's simulator names it)
         self.tf_from_odom = tf_from_odom and any(t.name in DERIVED_TOPICS for t in topics)
-        self.odom_frame = node_frame(self.node, FRAME_ODOM)  # map -> boat1/odom for a recorder in /boat1
         self.use_sim_time = bool(use_sim_time)
-        self._sim_ns = 0  # the last /clock taken (ROS time 0 until the first, as rclpy's time source)
         self._deserialize = deserialize_message
         self._clock_type = message_class("rosgraph_msgs/msg/Clock")
         self._system_clock = Clock(clock_type=ClockType.SYSTEM_TIME)
         self._lock = threading.Lock()
-        self._subs = []  # (subscription, spec or None: /clock for the time only)
+        self._subs = []  # (subscription, spec or None: /clock for the time only, vehicle)
         self.specs = {t.name: t for t in topics if not t.bag_only}
         self._queue_depth = int(queue_depth)
-        for spec in self.specs.values():
-            self._subs.append((self._subscribe(spec), spec))
-        if self.use_sim_time and CLOCK_TOPIC not in self.specs:
-            from bb2_msgs_py.contract import qos_profile
-            self._subs.append((self.node.create_subscription(
-                self._clock_type, CLOCK_TOPIC, self._unused_callback,
-                qos_profile(CLOCK_TOPIC), raw=True), None))
+        from bb2_msgs_py.contract import frame_prefix, qos_profile, vehicle_frame
+        # the boat of the node's namespace (map -> boat1/odom for a recorder in /boat1), or each boat of the fleet
+        self.vehicles = [Vehicle(f"/{b}", vehicle_frame(FRAME_ODOM, frame_prefix(b)), StepAcks(step_topics(topics)))
+                         for b in (x.strip("/") for x in boats)] or \
+            [Vehicle("", node_frame(self.node, FRAME_ODOM), StepAcks(step_topics(topics)))]
+        self._state_type = message_class("std_msgs/msg/Float64MultiArray")
+        self._header_type = message_class("std_msgs/msg/Header")
+        for v in self.vehicles:
+            for spec in self.specs.values():
+                self._subs.append((self._subscribe(spec, v), spec, v))
+            if self.use_sim_time and CLOCK_TOPIC not in self.specs:
+                self._subs.append((self.node.create_subscription(
+                    self._clock_type, v.graph_name(CLOCK_TOPIC), self._unused_callback,
+                    qos_profile(CLOCK_TOPIC), raw=True), None, v))
+            if acknowledge and STATE_TOPIC in self.specs:
+                v.ack_pub = self.node.create_publisher(self._header_type, v.graph_name(ACK_TOPIC),
+                                                       qos_profile(ACK_TOPIC))
         self.gaps = SequenceGaps()
         self._gap_warn_s, self._gap_warned_wall, self._gaps_warned = float(gap_warn_s), -math.inf, 0
-        self._ack_pub = None
-        self.acks = StepAcks(step_topics(topics))
-        if acknowledge and STATE_TOPIC in self.specs:
-            from bb2_msgs_py.contract import qos_profile
-            self._ack_pub = self.node.create_publisher(message_class("std_msgs/msg/Header"), node_topic_name(ACK_TOPIC),
-                                                       qos_profile(ACK_TOPIC))
-            self._state_type = message_class("std_msgs/msg/Float64MultiArray")
-            self._header_type = message_class("std_msgs/msg/Header")
         self.flush_period_s = float(flush_period_s)
         self._next_flush = time.monotonic() + self.flush_period_s
         self._wait_set = None
 
-    def _subscribe(self, spec: TopicSpec, *, best_effort: bool = False):
-        return self.node.create_subscription(message_class(spec.type), node_topic_name(spec.name),
+    def _subscribe(self, spec: TopicSpec, vehicle: Vehicle, *, best_effort: bool = False):
+        return self.node.create_subscription(message_class(spec.type), vehicle.graph_name(spec.name),
                                              self._unused_callback,
                                              subscription_qos(spec, self._queue_depth, best_effort=best_effort),
                                              raw=True)
@@ -321,27 +347,27 @@ class Recorder:
         from rclpy.qos import ReliabilityPolicy
 
         changed = []
-        for k, (sub, spec) in enumerate(self._subs):
+        for k, (sub, spec, v) in enumerate(self._subs):
             if spec is None or sub.qos_profile.reliability != ReliabilityPolicy.RELIABLE:  # /clock only, or done
                 continue
             try:
-                infos = self.node.get_publishers_info_by_topic(node_topic_name(spec.name))
+                infos = self.node.get_publishers_info_by_topic(v.graph_name(spec.name))
             except Exception:  # discovery hiccup: try again at the next flush
                 continue
             if any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos):
-                self._subs[k] = (self._subscribe(spec, best_effort=True), spec)
+                self._subs[k] = (self._subscribe(spec, v, best_effort=True), spec, v)
                 self.node.destroy_subscription(sub)
                 self._wait_set = None
-                changed.append(spec.name)
+                changed.append(v.bag_name(spec.name))
                 self.node.get_logger().warning(
-                    f"{spec.name}: a publisher offers best effort: recording it best effort from now on (a stalled "
+                    f"{changed[-1]}: a publisher offers best effort: recording it best effort from now on (a stalled "
                     "recorder may lose its samples; any gap is still detected and written into the bag)")
         return changed
 
-    def _offered_qos(self, name: str) -> list[dict[str, Any]]:
+    def _offered_qos(self, name: str, vehicle: Vehicle) -> list[dict[str, Any]]:
         try:
             return [qos_to_entry(info.qos_profile)
-                    for info in self.node.get_publishers_info_by_topic(node_topic_name(name))]
+                    for info in self.node.get_publishers_info_by_topic(vehicle.graph_name(name))]
         except Exception as exc:  # discovery hiccup: record without QoS rather than lose data
             self.node.get_logger().warning(f"cannot read offered QoS of {name}: {exc}")
             return []
@@ -362,7 +388,7 @@ class Recorder:
             self._wait_set = _rclpy.WaitSet(len(self._subs), 0, 0, 0, len(self._services), 0, ctx.handle)
         ws = self._wait_set
         ws.clear_entities()
-        for sub, _spec in self._subs:
+        for sub, _spec, _v in self._subs:
             ws.add_subscription(sub.handle)
         for srv in self._services:
             ws.add_service(srv.handle)
@@ -371,17 +397,17 @@ class Recorder:
             self._serve(set(ws.get_ready_entities("service")))
         ready = set(ws.get_ready_entities("subscription"))
         taken = []
-        for sub, spec in self._subs:
+        for sub, spec, v in self._subs:
             if sub.handle.pointer not in ready:
                 continue
             for data, info in take_all(sub):
-                taken.append((int(info.get("received_timestamp", 0)), len(taken), spec, data, info))
+                taken.append((int(info.get("received_timestamp", 0)), len(taken), spec, v, data, info))
         taken.sort(key=lambda m: (m[0], m[1]))
-        for _recv, _k, spec, data, info in taken:
+        for _recv, _k, spec, v, data, info in taken:
             if self.use_sim_time and (spec is None or spec.name == CLOCK_TOPIC):
-                self._sim_ns = leading_stamp_ns(data)
+                v.sim_ns = leading_stamp_ns(data)
             if spec is not None:
-                self._on_message(spec, data, info)
+                self._on_message(spec, data, info, v)
         self._acknowledge()
         self._warn_gaps()
         if self.flush_period_s > 0 and time.monotonic() >= self._next_flush:
@@ -399,30 +425,32 @@ class Recorder:
             if header is not None:
                 srv.send_response(srv.callback(request, srv.srv_type.Response()), header)
 
-    def _now_ns(self) -> int:
-        return self._sim_ns if self.use_sim_time else self._system_clock.now().nanoseconds
+    def _now_ns(self, vehicle: Vehicle) -> int:
+        """The log time: the boat's simulation time (its last /clock) with ``use_sim_time`` -- each boat of a fleet
+        logged on its own clock, so the boats play back side by side in simulation time --, else the wall clock."""
+        return vehicle.sim_ns if self.use_sim_time else self._system_clock.now().nanoseconds
 
-    def _on_message(self, spec: TopicSpec, data: bytes, info: dict) -> None:
-        t_ns = self._now_ns()
+    def _on_message(self, spec: TopicSpec, data: bytes, info: dict, vehicle: Vehicle) -> None:
+        t_ns = self._now_ns(vehicle)
+        name = vehicle.bag_name(spec.name)
         pub_ns = int(info.get("source_timestamp", t_ns)) if isinstance(info, dict) else t_ns
         seq = int(info.get("publication_sequence_number", 0)) if isinstance(info, dict) else 0
         seq = 0 if seq >= SEQUENCE_UNSUPPORTED else seq
         with self._lock:
-            if spec.name not in self.bag.topics:
-                self.bag.add_topic(spec.name, spec.type, offered_qos=self._offered_qos(spec.name),
+            if name not in self.bag.topics:
+                self.bag.add_topic(name, spec.type, offered_qos=self._offered_qos(spec.name, vehicle),
                                    dds_sequence=seq > 0)
-            self.bag.write(spec.name, data, t_ns, pub_ns, sequence=seq if self.bag.topics[spec.name].dds_sequence
-                           else None)
+            self.bag.write(name, data, t_ns, pub_ns, sequence=seq if self.bag.topics[name].dds_sequence else None)
             if seq > 0:
-                self.gaps.observe(spec.name, seq, t_ns, stream_source(spec.type, data), pub_ns)
-            if self._ack_pub is not None and spec.name in self.acks.topics:
-                self.acks.received(spec.name, self._step_stamp_ns(spec.name, data))
-            derived = DERIVED_TOPICS.get(spec.name) if self.tf_from_odom else None
+                self.gaps.observe(name, seq, t_ns, stream_source(spec.type, data), pub_ns)
+            if vehicle.ack_pub is not None and spec.name in vehicle.acks.topics:
+                vehicle.acks.received(spec.name, self._step_stamp_ns(spec.name, data))
+            derived = DERIVED_TOPICS.get(spec.name) if self.tf_from_odom else None  # /tf: one tree for every boat
             if derived is not None:
                 try:
-                    tf = derived_tf_cdr(spec.name, data, t_ns, odom_frame=self.odom_frame)
+                    tf = derived_tf_cdr(spec.name, data, t_ns, odom_frame=vehicle.odom_frame)
                 except (ValueError, KeyError, TypeError) as exc:  # the mountings are in the bag as they came
-                    self.node.get_logger().warning(f"{spec.name}: no {derived} from it ({exc})")
+                    self.node.get_logger().warning(f"{name}: no {derived} from it ({exc})")
                 else:
                     if derived not in self.bag.topics:
                         self.bag.add_topic(derived, TF_TYPE,
@@ -437,12 +465,12 @@ class Recorder:
         return leading_stamp_ns(data)
 
     def _acknowledge(self) -> None:
-        """Tell the simulator up to which step the bag holds every per-step topic (after the batch is written)."""
-        if self._ack_pub is None:
-            return
-        ack = self.acks.next_ack()
-        if ack is not None:
-            self._ack_pub.publish(self._header_type(stamp=time_msg(ack)))
+        """Tell each boat's simulator up to which step the bag holds its every per-step topic (after the batch is
+        written)."""
+        for v in self.vehicles:
+            ack = v.acks.next_ack() if v.ack_pub is not None else None
+            if ack is not None:
+                v.ack_pub.publish(self._header_type(stamp=time_msg(ack)))
 
     def _warn_gaps(self, *, final: bool = False) -> None:
         """Log the gaps found since the last warning (at most one warning per ``gap_warn_s`` wall s)."""
@@ -489,7 +517,12 @@ def _parse(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
                         "taken in batches (one wake-up instead of one per message: less CPU taken from the "
                         "graph; must stay well below --depth messages per topic); 0 = take each as it "
                         "arrives (parameter batch_period_s); default 0.005")
-    p.add_argument("--use-sim-time", action="store_true", help="log times from /clock (parameter use_sim_time)")
+    p.add_argument("--boats", nargs="+", default=None, metavar="NAMESPACE",
+                   help="record every boat of a fleet in one bag, each in its namespace: /boat1/bb2/odom ... and "
+                        "/boat1/clock on the graph and in the bag, one /tf for all, each boat acknowledged on its "
+                        "/boat1/bb2/recorder/ack (parameter boats); default: the boat of the recorder's namespace")
+    p.add_argument("--use-sim-time", action="store_true", help="log times from /clock (parameter use_sim_time; "
+                   "with --boats each boat's messages from its own /boat1/clock)")
     p.add_argument("--no-tf", action="store_true", help="do not derive /tf from /bb2/odom nor /tf_static from "
                    "/bb2/sensors/mountings (parameter tf_from_odom)")
     p.add_argument("--overwrite", action="store_true", help="allow a non-empty --out directory (parameter "
@@ -513,6 +546,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # read-only: a bag is configured whe
     "flush_period_s": (1.0, "storage: also close the open chunk every this many wall s (0 = never)"),
     "compression": ("zstd", "storage: chunk compression, zstd | lz4 | '' (none)"),
     "storage_id": ("mcap", "storage: rosbag2 storage plugin id; mcap (the only one written here)"),
+    "boats": ([""], "a fleet in one bag: the namespaces of its boats, each recorded as /NS/bb2/... and "
+                    "/NS/clock, on its own clock ([] or [''] = the boat of the recorder's namespace)"),
     "tf_from_odom": (True, "write /tf (odom -> base_link) from every /bb2/odom and /tf_static from "
                             "/bb2/sensors/mountings"),
     "overwrite": (False, "allow a non-empty bag_directory"),
@@ -568,10 +603,16 @@ def _main(argv: Sequence[str] | None) -> int:
         flush = args.flush_period if args.flush_period is not None else par["flush_period_s"]
         depth = args.depth if args.depth is not None else par["queue_depth"]
         batch = args.batch_period if args.batch_period is not None else par["batch_period_s"]
-        specs = select_topics(topics) if topics is not None else default_topics(node.get_namespace())
-        if topics is None and node.get_namespace() != "/":  # a boat's recorder records its boat
-            print(f"bb2-record: in {node.get_namespace()}: not recording {', '.join(GLOBAL_TOPICS)} (every boat's "
-                  "statuses; this boat's are in its bb2/status)", flush=True)
+        boats = [check_namespace(b, "a boat's namespace") for b in (args.boats if args.boats is not None
+                                                                     else par["boats"]) if b.strip()]
+        if len(set(boats)) != len(boats) or "" in boats:
+            raise ContractError(f"the boats must be distinct namespaces other than the root, got {boats}")
+        fleet_ns = f"/{boats[0]}" if boats else node.get_namespace()  # a fleet: the boats' topics, not the global
+        specs = select_topics(topics) if topics is not None else default_topics(fleet_ns)
+        if topics is None and fleet_ns != "/":  # a boat's recorder records its boat
+            print(f"bb2-record: in {'the fleet ' + ', '.join(boats) if boats else node.get_namespace()}: not "
+                  f"recording {', '.join(GLOBAL_TOPICS)} (every boat's statuses; each boat's are in its bb2/status)",
+                  flush=True)
         if chunk <= 0 or depth <= 0 or flush < 0 or not 0 <= batch <= 1:
             raise ContractError("chunk size and queue depth must be > 0, flush period >= 0, batch period in [0, 1] s")
         if par["storage_id"] != "mcap":
@@ -582,7 +623,8 @@ def _main(argv: Sequence[str] | None) -> int:
                            else Path("bags") / time.strftime("bb2_%Y%m%d_%H%M%S"))
         bag = BagWriter(out, chunk_size=int(chunk), compression=par["compression"],
                         overwrite=args.overwrite or par["overwrite"],
-                        custom_data={"recorder": "bb2_tools.recorder", "topics": " ".join(s.name for s in specs)})
+                        custom_data={"recorder": "bb2_tools.recorder", "topics": " ".join(s.name for s in specs),
+                                     **({"boats": " ".join(boats)} if boats else {})})
     except (ContractError, BagError, InvalidParameterTypeException, InvalidParameterValueException, OSError) as exc:
         from bb2_sim.outputs import os_error_line
 
@@ -596,8 +638,9 @@ def _main(argv: Sequence[str] | None) -> int:
 
     previous = stop_signals(stop)
     rec = Recorder(bag, specs, tf_from_odom=not args.no_tf and par["tf_from_odom"], flush_period_s=float(flush),
-                   queue_depth=int(depth), use_sim_time=use_sim_time, node=node)
-    print(f"bb2-record: recording {len(specs)} topics into {out}", flush=True)
+                   queue_depth=int(depth), use_sim_time=use_sim_time, node=node, boats=boats)
+    print(f"bb2-record: recording {len(specs)} topics" + (f" of each of {len(boats)} boats" if boats else "")
+          + f" into {out}", flush=True)
     code = 0
     try:
         while not stop.is_set() and rclpy.ok():

@@ -53,12 +53,13 @@ def launch(ws, domain: int, *args: str) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
 
 
-def states(bag: Path) -> dict[float, list[float]]:
-    """``t -> the exact state`` of every /bb2/state_native in a bag (re-sent states are equal)."""
+def states(bag: Path, vehicle: str | None = None) -> dict[float, list[float]]:
+    """``t -> the exact state`` of every /bb2/state_native in a bag (of ``vehicle`` in a fleet's bag; re-sent
+    states are equal)."""
     from bb2_tools.bagfile import BagReader
 
     out: dict[float, list[float]] = {}
-    for _name, _t, msg in BagReader(bag).messages("/bb2/state_native"):
+    for _name, _t, msg in BagReader(bag, vehicle).messages("/bb2/state_native"):
         d = list(msg.data)
         assert out.setdefault(d[0], d) == d
     return out
@@ -155,32 +156,54 @@ def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):
     out = finish(p, 240)
     assert p.returncode == 0 and "2 of 2 boats done" in out, out[-3000:]
     assert "matches no topic" not in out, out[-3000:]  # every remap names a topic of its node
+    # one recorder, one bag: every boat's topics under its namespace, one /tf
     (fleet,) = (tmp / "fleet").iterdir()
-    boat1, boat2 = states(fleet / "boat1"), states(fleet / "boat2")
-    assert boat1 == states(solo)  # the same mission as alone, to the last bit: no crosstalk, deterministic
-    assert len(boat2) == 51 and boat2[0.0][1:4] != boat1[0.0][1:4]  # its own mission (another start), flown
-    # every boat's frames carry its namespace under the shared map; alone, the frames are today's
-    assert frames(solo) == vehicle_frames("")
-    assert frames(fleet / "boat1") == vehicle_frames("boat1/")
-    no_terrain = vehicle_frames("boat2/")  # boat2's straight mission has no terrain: no altitude
-    del no_terrain["/bb2/altitude"]
-    assert frames(fleet / "boat2") == no_terrain
-    # the global /diagnostics (every boat's statuses) is in the solo bag, not in a boat's: its own are in bb2/status
     from bb2_tools.bagfile import BagReader
 
-    assert "/diagnostics" in BagReader(solo).topics
+    bag = BagReader(fleet)
+    assert bag.vehicles == ["boat1", "boat2"] and not bag.truncated
+    assert {"/boat1/bb2/state_native", "/boat2/bb2/odom", "/boat1/clock", "/tf", "/tf_static"} <= set(bag.topics)
+    assert not [t for t in bag.topics if t.startswith("/bb2/")], sorted(bag.topics)
+    assert "/diagnostics" not in bag.topics  # every boat's statuses: each boat's own are in its bb2/status
+    boat1, boat2 = states(fleet, "boat1"), states(fleet, "boat2")
+    assert boat1 == states(solo)  # the same mission as alone, to the last bit: no crosstalk, deterministic
+    assert len(boat2) == 51 and boat2[0.0][1:4] != boat1[0.0][1:4]  # its own mission (another start), flown
+    # each boat logged on its own clock: a state's log time is its boat's last /clock before it (rosbag2's receive
+    # time in sim time), its own time or the step before -- never the other boat's, which flies at its own pace
     for b in ("boat1", "boat2"):
-        assert "/diagnostics" not in BagReader(fleet / b).topics and BagReader(fleet / b).message_counts["/bb2/status"]
-    # a boat's bag is read against its own frames: bb2-analyze's reader gets the same run as alone (its rate
-    # commands, in boat1/base_link, included), bb2-replay re-flies it open loop with every command taken
+        lag = [msg.data[0] - t * 1e-9 for _n, t, msg in BagReader(fleet, b).messages("/bb2/state_native")]
+        assert -1e-9 <= min(lag) and max(lag) <= 0.05 + 1e-9, (b, min(lag), max(lag))
+    # every boat's frames carry its namespace under the shared map; alone, the frames are today's
+    assert frames(solo) == vehicle_frames("")
+    assert frames(fleet, "boat1") == vehicle_frames("boat1/")
+    no_terrain = vehicle_frames("boat2/")  # boat2's straight mission has no terrain: no altitude
+    del no_terrain["/bb2/altitude"]
+    assert frames(fleet, "boat2") == no_terrain
+    assert "/diagnostics" in BagReader(solo).topics and BagReader(fleet, "boat2").message_counts["/bb2/status"]
+    # a boat of the fleet's bag is read against its own frames: bb2-analyze's reader gets the same run as alone
+    # (its rate commands, in boat1/base_link, included), bb2-replay re-flies it open loop with every command taken
     from bb2_tools.bag_run import read_bag
     from bb2_tools.replay import open_loop
 
-    alone, ours = read_bag(solo), read_bag(fleet / "boat1")
+    alone, ours = read_bag(solo), read_bag(fleet, vehicle="boat1")
     assert np.array_equal(ours.x, alone.x) and len(ours.rate_cmd.t) == len(alone.rate_cmd.t) > 0
     assert np.array_equal(ours.rate_cmd.v, alone.rate_cmd.v) and not ours.warnings, ours.warnings
-    r = open_loop(fleet / "boat1")
+    r = open_loop(BagReader(fleet, "boat1"))
     assert r.rejected_commands == 0 and r.exact_commands == r.steps > 0 and r.max_position_m == 0.0, r.lines()
+    # the fleet's bag opens in the rosbags library (the ROS-free reader many users analyse with): every topic
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([fleet]) as rb:
+        n = {c.topic: c.msgcount for c in rb.connections}
+        assert n == bag.message_counts, (n, bag.message_counts)
+        conn = [c for c in rb.connections if c.topic == "/boat2/bb2/odom"]
+        _c, _t, raw = next(rb.messages(connections=conn))
+        assert rb.deserialize(raw, conn[0].msgtype).child_frame_id == "boat2/base_link"
+    # bb2-analyze of the fleet's bag: every boat alone, then side by side
+    p = subprocess.run([sys.executable, "-m", "bb2_tools.analyze", str(fleet), "--no-report"], env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert "fleet  2 vehicles: boat1, boat2" in p.stdout, p.stdout
 
 
 def vehicle_frames(prefix: str) -> dict[str, set[str]]:
@@ -193,18 +216,21 @@ def vehicle_frames(prefix: str) -> dict[str, set[str]]:
             "/bb2/scene/markers": {b, "map"}}
 
 
-def frames(bag: Path) -> dict[str, set[str]]:
-    """topic -> the frame ids its messages carry (``parent -> child`` for odometry and transforms)."""
+def frames(bag: Path, vehicle: str | None = None) -> dict[str, set[str]]:
+    """topic -> the frame ids its messages carry (``parent -> child`` for odometry and transforms; of ``vehicle`` in
+    a fleet's bag: the one /tf tree's transforms of that boat's frames)."""
     from bb2_tools.bagfile import BagReader
 
-    reader = BagReader(bag)
+    reader = BagReader(bag, vehicle)
+    mine = (lambda f: f.startswith(f"{vehicle}/")) if vehicle else (lambda f: True)
     out: dict[str, set[str]] = {}
     for name, _t, msg in reader.messages([t for t in vehicle_frames("") if t in reader.topics]):
         got = out.setdefault(name, set())
         if name == "/bb2/odom":
             got.add(f"{msg.header.frame_id} -> {msg.child_frame_id}")
         elif name in ("/tf", "/tf_static"):
-            got.update(f"{tf.header.frame_id} -> {tf.child_frame_id}" for tf in msg.transforms)
+            got.update(f"{tf.header.frame_id} -> {tf.child_frame_id}" for tf in msg.transforms
+                       if mine(tf.child_frame_id))
         elif name == "/bb2/scene/markers":
             got.update(m.header.frame_id for m in msg.markers)
         else:

@@ -340,6 +340,59 @@ def test_a_fleet_folder_reports_every_vehicle_as_alone_and_side_by_side(bags, ca
     assert "fleet  3 vehicles: boat1, boat2, boat3" in capsys.readouterr().out
 
 
+def test_a_fleet_bag_one_recorder_for_all_reads_and_reports_every_vehicle_as_alone(bags, capsys, tmp_path):
+    """Issue 13, point 4: the one bag of a fleet's recorder (every boat's topics under its namespace,
+    ``/boat1/bb2/odom``, one ``/tf``): ``BagReader(bag, vehicle)`` reads a boat under the contract's names, its gaps
+    too; ``bb2-analyze FLEET_BAG`` prints every vehicle as ``bb2-analyze`` of its own bag does, then the table."""
+    import json
+
+    from bb2_tools.bagfile import GAPS_KEY, BagError, BagReader, Gap, bag_gaps
+
+    boats = {"boat1": "circle", "boat2": "canyon"}
+    fleet = tmp_path / "fleet_20261204_120000"
+    lost = Gap("/boat2/bb2/odom", 2, 10, 13, 0.5, 0.65)  # a gap of boat2's, said in the fleet bag's metadata
+    with BagWriter(fleet, custom_data={GAPS_KEY: json.dumps([lost.as_dict()])}) as w:
+        for name, key in boats.items():
+            r = BagReader(bags[key][0])
+            infos = {t.name: t for t in r.topic_infos()}
+            for m in r.raw_messages(file_order=True):
+                topic = m.topic if m.topic in ("/tf", "/tf_static") else f"/{name}{m.topic}"
+                w.add_topic(topic, m.type, offered_qos=infos[m.topic].offered_qos, dds_sequence=infos[m.topic].dds_sequence)
+                w.write(topic, m.data, m.log_time_ns, m.publish_time_ns, sequence=m.sequence)
+    bag = BagReader(fleet)
+    assert bag.vehicles == ["boat1", "boat2"] and "/bb2/odom" not in bag.topics
+    b2 = BagReader(fleet, "boat2")
+    alone2 = BagReader(bags["canyon"][0])
+    assert b2.topics == alone2.topics  # its own topics under the contract's names and the global /tf, /tf_static
+    mine = {k: v for k, v in b2.message_counts.items() if k not in ("/tf", "/tf_static")}
+    assert mine == {k: v for k, v in alone2.message_counts.items() if k not in ("/tf", "/tf_static")}
+    assert b2.message_counts["/tf"] == bag.message_counts["/tf"] > alone2.message_counts["/tf"]  # every boat's
+    assert [m.data for m in b2.raw_messages("/bb2/state_native")] == \
+        [m.data for m in alone2.raw_messages("/bb2/state_native")]
+    assert bag_gaps(b2) == [Gap("/bb2/odom", 2, 10, 13, 0.5, 0.65)] and bag_gaps(BagReader(fleet, "boat1")) == []
+    with pytest.raises(BagError, match="no vehicle 'boat3' in the bag"):
+        BagReader(fleet, "boat3")
+    alone = {}
+    for name, key in boats.items():
+        assert an.main([str(bags[key][0]), "--no-report", "--label", name]) == 0
+        alone[name] = capsys.readouterr().out.splitlines()[1:]
+    assert an.main([str(fleet)]) == 0
+    text = capsys.readouterr().out
+    for name in boats:
+        # (boat2 read from the fleet bag says its gap; alone it has none; alone, the canyon's terrain is known from
+        # its bag's custom_data mission_file, which this hand-made fleet bag has not -- a fleet recorder's bag
+        # knows it from each boat's bb2/status -- so the terrain figures are left out)
+        def mine(lines):
+            return [ln for ln in lines if not any(w in ln for w in ("warning", "clearance", "altitude", "terrain"))]
+        own = mine(alone[name])
+        block = mine(text.split(f"{name}: {fleet}\n", 1)[1].splitlines())
+        assert block[:len(own)] == own, name
+    assert "fleet  2 vehicles: boat1, boat2" in text
+    assert "gap(s) on /bb2/odom: 1 gap(s), 2 message(s) lost" in text.split(f"boat2: {fleet}\n", 1)[1]
+    doc = json.loads((fleet / "analysis" / "figures.json").read_text())
+    assert list(doc) == list(boats) and (fleet / "analysis" / "boat2" / "report.html").is_file()
+
+
 def test_truncated_bag_read_to_last_chunk(bags, tmp_path, capsys):
     bag, runner, traj = bags["circle"]
     mcap = next(bag.glob("*.mcap"))

@@ -114,10 +114,12 @@ def container_arguments(nodes: list[tuple[str, dict]], params: list[str], ns: st
 
 
 def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, namespace: str, params_file: str,
-         stop_launch: bool = True, compose: bool = False, foxglove_port: int | None = None) -> list:
+         stop_launch: bool = True, compose: bool = False, foxglove_port: int | None = None,
+         own_recorder: bool = True) -> list:
     """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch;
     ``compose``: every node but the recorder in one container process; ``foxglove_port``: the live Foxglove
-    server on that port)."""
+    server on that port; ``record`` without ``own_recorder``: recorded by a recorder of the caller's, a fleet's
+    (:func:`fleet_recorder`), which the simulator waits for as for its own)."""
     if time_mode not in ("lockstep", "realtime"):
         raise RuntimeError(f"launch argument time_mode must be lockstep or realtime, got {time_mode!r}")
     ns = namespace.strip("/")
@@ -131,7 +133,7 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
                     prefix=BACKGROUND if background else None)
 
     actions = []
-    if record:
+    if record and own_recorder:
         assert bag is not None
         actions.append(node("bb2_tools", "recorder", {"bag_directory": str(bag), "use_sim_time": True},
                             background=True))
@@ -160,6 +162,14 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
                         "stopping the graph"),
             EmitEvent(event=Shutdown(reason="the simulator ended the run"))])))
     return actions
+
+
+def fleet_recorder(bag: Path, boats: list[str]) -> Node:
+    """The one recorder of a fleet: every boat's topics under its namespace in one bag (``/boat1/bb2/odom``,
+    ``/boat1/clock``, one ``/tf``), each boat logged on its own clock and acknowledged on its
+    ``/boat1/bb2/recorder/ack``."""
+    return Node(package="bb2_tools", executable="recorder", name="recorder", output="screen", prefix=BACKGROUND,
+                parameters=[{"bag_directory": str(bag), "use_sim_time": True, "boats": list(boats)}])
 
 
 def default_bag(bag_dir: str, mission: Path, namespace: str) -> Path:

@@ -7,7 +7,8 @@ with its own controllers (deterministic: a boat's run equals the same mission fl
   boats        comma-separated namespaces (default boat1,boat2)
   missions     one mission (name or file) for every boat, or one per boat, comma-separated (default canyon)
   time_mode    lockstep | realtime
-  record       true | false: a bag per boat, <bag_dir>/<fleet>_<date>/<boat>
+  record       true | false: one bag of every boat, <bag_dir>/fleet_<date> (its topics /boat1/bb2/odom ...;
+               ``bb2-analyze`` of it reports every boat)
   bag_dir      default bags
   params_file  the graph's params file
 
@@ -33,7 +34,7 @@ ARGUMENTS = {
     "boats": ("boat1,boat2", "comma-separated namespaces, one boat each"),
     "missions": ("canyon", "one mission (name or file) for all, or one per boat, comma-separated"),
     "time_mode": ("lockstep", "lockstep | realtime"),
-    "record": ("true", "true | false: one bag per boat, <bag_dir>/fleet_<date>/<boat>"),
+    "record": ("true", "true | false: one bag of every boat, <bag_dir>/fleet_<date>"),
     "bag_dir": ("bags", "where the fleet's bags go"),
     "params_file": (graph.ARGUMENTS["params_file"][0], "the graph's ROS 2 params file"),
 }
@@ -52,13 +53,14 @@ def _fleet(context):
     record = graph.flag(a["record"], "record")
     root = Path(a["bag_dir"]).expanduser().resolve() / f"fleet_{time.strftime('%Y%m%d_%H%M%S')}"
     actions, sims = [], []
+    if record:
+        actions += [LogInfo(msg=f"[bb2_bringup] fleet bag {root}"), graph.fleet_recorder(root, boats)]
     for ns, m in zip(boats, missions):
         mission = graph.mission_file(m)
-        acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=root / ns if record else None,
-                          namespace=ns, params_file=a["params_file"], stop_launch=False)
+        acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=None, namespace=ns,
+                          params_file=a["params_file"], stop_launch=False, own_recorder=False)
         sims.append(acts[-1])
-        actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}" + (f", bag {root / ns}" if record
-                                                                                 else "")), *acts]
+        actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}"), *acts]
     ended: set[int] = set()
     names = {id(sim): ns for sim, ns in zip(sims, boats)}
 
