@@ -78,7 +78,9 @@ def test_recorder_parameters_and_parameter_services(tmp_path):
 def test_recorder_refuses_bad_storage_parameters_with_one_line(tmp_path):
     for args, why in ((["-p", "storage_id:=sqlite3"], "storage_id"), (["-p", "compression:=gzip"], "compression"),
                       (["-p", "batch_period_s:=5.0"], "batch period"), (["-p", "topics:=[/bb2/nothing]"],
-                                                                        "matches no contract topic")):
+                                                                        "matches no contract topic"),
+                      (["-p", "boats:=[boat1,1boat]"], "a boat's namespace must be a ROS 2 namespace"),
+                      (["-p", "boats:=[boat1,boat1]"], "the boats must be distinct")):
         r = subprocess.run([sys.executable, "-m", "bb2_tools.recorder", "--ros-args",
                             "-p", f"bag_directory:={tmp_path / 'b'}", *args], cwd=tmp_path, env=ros_env(claimed_domain()),
                            capture_output=True, text=True, timeout=60)
