@@ -34,6 +34,10 @@ alone); its recorder writes the boat's topics under the contract's names (``/bb2
 single boat's, its frames prefixed) and leaves ``/diagnostics`` (every boat's) out; the run directory ends in
 ``_NAME``.
 
+A fleet file (``bb2-launch FLEET.yaml``, :mod:`bb2_mission.fleet`): every boat flown as ``--namespace BOAT`` on one
+domain, one recorder for all boats into one bag (:mod:`bb2_tools.fleet_launcher`; ``--external-recorder`` is how each
+boat's launch is told its recorder runs elsewhere).
+
 Every child's stdout and stderr go to ``<run>/logs/<node>.log`` (and a ring buffer of the last
 lines).  ``<run>`` is the bag directory ``<bag-dir>/<mission>_<YYYYmmdd_HHMMSS>[_NAME]/`` (metadata.yaml
 and the .mcap beside ``logs/``).
@@ -200,12 +204,15 @@ def caught_up(monitor: GraphMonitor, say, *, interrupted=lambda: False, limit_s:
 
 def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[str] = (),
               ready_timeout_s: float = 30.0, timeout_s: float | None = None, status_period_s: float = 5.0,
-              out=sys.stderr, handle_signals: bool = True, stall_timeout_s: float | None = None) -> RunResult:
+              out=sys.stderr, handle_signals: bool = True, stall_timeout_s: float | None = None,
+              recorder_outside: bool = False) -> RunResult:
     """Start the ``early`` specs at once, then ``first`` one by one (waiting for readiness), then the rest;
     supervise until the mission ends, a node fails, a signal arrives, ``timeout_s`` passes or (with
     ``stall_timeout_s``) the sim time has not advanced for that many wall seconds since it last moved, or has
     not started ``ready_timeout_s + stall_timeout_s`` after every process was started (the time its nodes have
-    to come up, then the stall timeout: reported as stalled, exit 1); stop everything; return the result."""
+    to come up, then the stall timeout: reported as stalled, exit 1); stop everything; return the result.
+    ``recorder_outside``: the boat is recorded by a recorder of another process (a fleet's), whose
+    acknowledgement the end waits for as for its own (:func:`caught_up`)."""
     flag = _StopFlag()
     previous = {}
     if handle_signals and threading.current_thread() is threading.main_thread():
@@ -290,7 +297,7 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
             time.sleep(0.1)
         if tty:
             print(file=out)
-        if reason == "mission complete" and "recorder" in sup.running() and monitor is not None:
+        if reason == "mission complete" and ("recorder" in sup.running() or recorder_outside) and monitor is not None:
             caught_up(monitor, say, interrupted=lambda: bool(flag.count))
         say(f"[bb2-launch] stopping: {reason}")
         if sup.failure:
@@ -419,7 +426,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 policies: Mapping[str, RestartPolicy] | None = None,
                 monitor: GraphMonitor | None = None,
                 groups: Sequence[Sequence[str]] = (), foxglove_port: int | None = None,
-                namespace: str = "") -> list[ProcessSpec]:
+                namespace: str = "", own_recorder: bool = True) -> list[ProcessSpec]:
     """The process specs of the BB2 graph for one mission, in start order.
 
     The planner and the controllers, and in lockstep the simulator, are ``early``: :func:`run_graph`
@@ -436,7 +443,9 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     server on that port (:data:`FOXGLOVE`, off the control loop, started with the others).  ``namespace``: every
     node (the recorder and the Foxglove server too) in /NAMESPACE with a clock of its own (:func:`namespace_args`):
     the boat's topics are /NAMESPACE/bb2/... and /NAMESPACE/clock, so boats of several launches on one
-    ``--domain-id`` fly side by side without crosstalk.
+    ``--domain-id`` fly side by side without crosstalk.  ``record`` without ``own_recorder``: the boat is recorded by
+    a recorder started elsewhere (a fleet's, :mod:`bb2_tools.fleet_launcher`), which the simulator waits for as for
+    its own (its readers, its acknowledgements on the boat's ``bb2/recorder/ack``).
     """
     from bb2_msgs_py.contract import boat_topic
 
@@ -471,7 +480,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     specs: list[ProcessSpec] = []
     for node in GRAPH_NODES:
         if node.name == "recorder":
-            if not record:
+            if not record or not own_recorder:
                 continue
             base = node_command(node, runner)
             topics = [boat_topic(t, ns) for t in recorded_topics(ns)]
@@ -690,7 +699,8 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="bb2-launch", description=__doc__.split("\n\n")[0],
                                 epilog=__doc__.split("\n\n", 1)[1],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("mission", type=Path, nargs="?", help="mission YAML (as for `bb2-sim mission`)")
+    p.add_argument("mission", type=Path, nargs="?", help="mission YAML (as for `bb2-sim mission`), or a fleet "
+                   "file (bb2_mission.fleet: every boat in its namespace, one recorder for all)")
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
                    help="simulator time mode (default lockstep)")
     p.add_argument("--params", type=Path, default=None, help="ROS 2 params file passed to every node")
@@ -698,6 +708,10 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     p.add_argument("--out", type=Path, default=None,
                    help="run (bag) directory; default <bag-dir>/<mission>_<YYYYmmdd_HHMMSS>")
     p.add_argument("--no-record", action="store_true", help="do not start the recorder")
+    p.add_argument("--external-recorder", action="store_true",
+                   help="the boat is recorded by a recorder started elsewhere (a fleet's: bb2-record --boats; "
+                        "bb2-launch FLEET.yaml starts one): no recorder here, but the simulator waits for that "
+                        "one's readers and acknowledgements as for its own")
     p.add_argument("--namespace", default="", metavar="NAME",
                    help="run the boat's nodes in /NAME with a clock of its own (topics /NAME/bb2/..., /NAME/clock, "
                         "frames NAME/base_link ...): boats of several launches on one --domain-id fly side by side")
@@ -756,6 +770,12 @@ def _main(argv: Sequence[str] | None) -> int:
     # ament index is read; the nodes inherit them
     if (bad := ros_environment_or_error("bb2-launch")) is not None:
         return bad
+    from bb2_mission.fleet import is_fleet_file
+
+    if args.mission is not None and is_fleet_file(args.mission):  # several boats: bb2_tools.fleet_launcher
+        from bb2_tools.fleet_launcher import run_fleet
+
+        return run_fleet(args)
     try:
         if args.mission is None:
             raise LaunchError("a mission file is required")
@@ -768,6 +788,8 @@ def _main(argv: Sequence[str] | None) -> int:
         if not (args.ready_timeout > 0 and math.isfinite(args.ready_timeout)):
             raise LaunchError(f"--ready-timeout must be > 0 and finite, got {args.ready_timeout}")
         namespace = check_namespace(args.namespace)
+        if args.external_recorder and args.no_record:
+            raise LaunchError("--external-recorder (recorded elsewhere) and --no-record (not recorded) contradict")
         groups = compose_groups(args.group if args.group is not None else [] if args.compose else None)
         policies = parse_restart_policies(args.restart, process_names(groups), args.max_restarts)
         check_restart_policies(policies, groups)
@@ -809,7 +831,7 @@ def _main(argv: Sequence[str] | None) -> int:
     env[PUBLISHED_DIR_ENV] = str(log_dir / "published")  # each node process's counts, compared with the bag
     specs = graph_specs(mission, run_dir, mode=args.mode, params=params, record=not args.no_record,
                         runner=args.runner, policies=policies, monitor=monitor, groups=groups,
-                        foxglove_port=args.foxglove, namespace=namespace)
+                        foxglove_port=args.foxglove, namespace=namespace, own_recorder=not args.external_recorder)
     echo = (lambda name, line: print(f"[{name}] {line}", file=sys.stderr, flush=True)) if args.echo else None
     print(f"[bb2-launch] mission {mission} | mode {args.mode} | ROS_DOMAIN_ID={monitor.domain_id} | "
           + (f"namespace /{namespace} | " if namespace else "") + f"run {run_dir}", file=sys.stderr, flush=True)
@@ -822,11 +844,12 @@ def _main(argv: Sequence[str] | None) -> int:
     try:
         result = run_graph(sup, monitor, first=[s.name for s in specs if s.ready is not None],
                            ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
-                           stall_timeout_s=args.stall_timeout or None)
+                           stall_timeout_s=args.stall_timeout or None,
+                           recorder_outside=args.external_recorder and not args.no_record)
     finally:
         sup.stop(hurry=True)
         monitor.close()
-    bags = recorder_bags(run_dir, result.exits) if not args.no_record else []
+    bags = recorder_bags(run_dir, result.exits) if not (args.no_record or args.external_recorder) else []
     for note in repair_bags(bags):
         print(f"[bb2-launch] {note}", file=sys.stderr)
     counts_note = ""

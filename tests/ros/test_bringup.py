@@ -40,6 +40,7 @@ def ws(tmp_path_factory):
     share = tmp / "install" / "bb2_bringup" / "share" / "bb2_bringup"
     assert (share / "launch" / "bb2_graph.launch.py").exists() and (share / "launch" / "fleet.launch.py").exists()
     assert (share / "config" / "bb2_graph.yaml").exists() and (share / "missions" / "canyon.yaml").exists()
+    assert (share / "missions" / "fleets" / "canyon_pair.yaml").exists()  # fleet:=canyon_pair finds it
     for name, ext in (("short", "canyon"), ("short_straight", "straight")):
         (tmp / f"{name}.yaml").write_text(f"extends: {REPO / 'missions' / (ext + '.yaml')}\nname: {name}\n"
                                           "duration_s: 2.5\n")
@@ -151,13 +152,17 @@ def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):
     domain = claimed_domain()  # the solo graph's, then the fleet's: the fleet must not see its topics either
     p = launch(ws, domain, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", f"bag:={solo}")
     assert finish(p, 180) and p.returncode == 0
-    p = launch(ws, domain, "fleet.launch.py", "boats:=boat1,boat2",
-               f"missions:={tmp / 'short.yaml'},{tmp / 'short_straight.yaml'}", f"bag_dir:={tmp / 'fleet'}")
+    # a fleet file: boat1 the solo mission as it is, boat2 another mission with its own start (bb2_mission.fleet)
+    (tmp / "pair.yaml").write_text("name: pair\nboats:\n  boat1: short.yaml\n  boat2:\n    mission: short_straight.yaml\n"
+                                   "    initial: {offset_m: [0.0, 20.0, 0.0]}\n")
+    p = launch(ws, domain, "fleet.launch.py", f"fleet:={tmp / 'pair.yaml'}", f"bag_dir:={tmp / 'fleet'}")
     out = finish(p, 240)
     assert p.returncode == 0 and "2 of 2 boats done" in out, out[-3000:]
     assert "matches no topic" not in out, out[-3000:]  # every remap names a topic of its node
-    # one recorder, one bag: every boat's topics under its namespace, one /tf
+    # one recorder, one bag: every boat's topics under its namespace, one /tf; beside it the boats' missions
     (fleet,) = (tmp / "fleet").iterdir()
+    assert fleet.name.startswith("pair_") and (fleet / "missions" / "boat2.yaml").is_file(), sorted(fleet.rglob("*"))
+    assert not (fleet / "missions" / "boat1.yaml").exists()  # boat1 flies short.yaml itself
     from bb2_tools.bagfile import BagReader
 
     bag = BagReader(fleet)
@@ -168,6 +173,7 @@ def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):
     boat1, boat2 = states(fleet, "boat1"), states(fleet, "boat2")
     assert boat1 == states(solo)  # the same mission as alone, to the last bit: no crosstalk, deterministic
     assert len(boat2) == 51 and boat2[0.0][1:4] != boat1[0.0][1:4]  # its own mission (another start), flown
+    assert boat2[0.0][2] == 20.0  # the fleet file's offset: 20 m to the side of the straight line's start (y = 0)
     # each boat logged on its own clock: a state's log time is its boat's last /clock before it (rosbag2's receive
     # time in sim time), its own time or the step before -- never the other boat's, which flies at its own pace
     for b in ("boat1", "boat2"):

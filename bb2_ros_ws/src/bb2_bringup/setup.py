@@ -12,4 +12,5 @@ setup_package(__file__, python=False, share={
     'launch': ['launch/*.launch.py'],
     'config': ['config/bb2_graph.yaml', 'config/foxglove_layout.json'],
     'missions': ['missions/*.yaml'],
+    'missions/fleets': ['missions/fleets/*.yaml'],
 })

@@ -168,8 +168,10 @@ def fleet_recorder(bag: Path, boats: list[str]) -> Node:
     """The one recorder of a fleet: every boat's topics under its namespace in one bag (``/boat1/bb2/odom``,
     ``/boat1/clock``, one ``/tf``), each boat logged on its own clock and acknowledged on its
     ``/boat1/bb2/recorder/ack``."""
+    # (overwrite: the bag directory may already hold the boats' mission files, missions/, as a run directory does)
     return Node(package="bb2_tools", executable="recorder", name="recorder", output="screen", prefix=BACKGROUND,
-                parameters=[{"bag_directory": str(bag), "use_sim_time": True, "boats": list(boats)}])
+                parameters=[{"bag_directory": str(bag), "use_sim_time": True, "boats": list(boats),
+                             "overwrite": True}])
 
 
 def default_bag(bag_dir: str, mission: Path, namespace: str) -> Path:

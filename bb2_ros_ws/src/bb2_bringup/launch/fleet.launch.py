@@ -1,9 +1,12 @@
-"""Several BB2 boats in one launch: ``ros2 launch bb2_bringup fleet.launch.py boats:=boat1,boat2 [argument:=value]``.
+"""Several BB2 boats in one launch: ``ros2 launch bb2_bringup fleet.launch.py boats:=boat1,boat2 [argument:=value]``
+or ``fleet:=canyon_pair|FILE`` (a fleet file: every boat with its own mission, :mod:`bb2_mission.fleet`).
 
 Each boat is the graph of ``bb2_graph.launch.py`` in its own namespace (nodes /boat1/simulator ..., topics
 /boat1/bb2/odom ..., its own /boat1/clock), so the boats fly side by side without crosstalk, each in lockstep
 with its own controllers (deterministic: a boat's run equals the same mission flown alone).  Arguments:
 
+  fleet        '' or a fleet file (a shipped fleet's name, share/bb2_bringup/missions/fleets/, or a file): its boats
+               and their missions (each boat's mission written to <bag>/missions/<boat>.yaml); replaces boats, missions
   boats        comma-separated namespaces (default boat1,boat2)
   missions     one mission (name or file) for every boat, or one per boat, comma-separated (default canyon)
   time_mode    lockstep | realtime
@@ -17,6 +20,7 @@ The launch ends when every boat's simulator has ended its run (Ctrl-C stops ever
 from __future__ import annotations
 
 import importlib.util
+import tempfile
 import time
 from pathlib import Path
 
@@ -26,11 +30,14 @@ from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 
+from bb2_mission.fleet import load_fleet
+
 _spec = importlib.util.spec_from_file_location("bb2_graph_launch", Path(__file__).with_name("bb2_graph.launch.py"))
 graph = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(graph)
 
 ARGUMENTS = {
+    "fleet": ("", "'' or a fleet file (shipped name or file): its boats and their missions, instead of boats/missions"),
     "boats": ("boat1,boat2", "comma-separated namespaces, one boat each"),
     "missions": ("canyon", "one mission (name or file) for all, or one per boat, comma-separated"),
     "time_mode": ("lockstep", "lockstep | realtime"),
@@ -42,16 +49,22 @@ ARGUMENTS = {
 
 def _fleet(context):
     a = {k: LaunchConfiguration(k).perform(context) for k in ARGUMENTS}
-    boats = [b.strip().strip("/") for b in a["boats"].split(",") if b.strip()]
-    if not boats or len(set(boats)) != len(boats):
-        raise RuntimeError(f"launch argument boats must name distinct namespaces, got {a['boats']!r}")
-    missions = [m.strip() for m in a["missions"].split(",") if m.strip()]
-    if len(missions) == 1:
-        missions *= len(boats)
-    if len(missions) != len(boats):
-        raise RuntimeError(f"{len(missions)} missions for {len(boats)} boats")
     record = graph.flag(a["record"], "record")
-    root = Path(a["bag_dir"]).expanduser().resolve() / f"fleet_{time.strftime('%Y%m%d_%H%M%S')}"
+    fleet = load_fleet(fleet_file(a["fleet"])) if a["fleet"].strip() else None
+    name = fleet.name if fleet is not None else "fleet"
+    root = Path(a["bag_dir"]).expanduser().resolve() / f"{name}_{time.strftime('%Y%m%d_%H%M%S')}"
+    if fleet is not None:  # every boat's mission as a file of its own, kept with the bag (the nodes read it)
+        files = fleet.write_missions(root / "missions" if record else tempfile.mkdtemp(prefix=f"{name}_"))
+        boats, missions = list(files), [str(f) for f in files.values()]
+    else:
+        boats = [b.strip().strip("/") for b in a["boats"].split(",") if b.strip()]
+        if not boats or len(set(boats)) != len(boats):
+            raise RuntimeError(f"launch argument boats must name distinct namespaces, got {a['boats']!r}")
+        missions = [m.strip() for m in a["missions"].split(",") if m.strip()]
+        if len(missions) == 1:
+            missions *= len(boats)
+        if len(missions) != len(boats):
+            raise RuntimeError(f"{len(missions)} missions for {len(boats)} boats")
     actions, sims = [], []
     if record:
         actions += [LogInfo(msg=f"[bb2_bringup] fleet bag {root}"), graph.fleet_recorder(root, boats)]
@@ -75,6 +88,20 @@ def _fleet(context):
     for sim in sims:
         actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=on_exit)))
     return actions
+
+
+def fleet_file(value: str) -> Path:
+    """A shipped fleet's name (share/bb2_bringup/missions/fleets/NAME.yaml) or a fleet file."""
+    p = Path(value).expanduser()
+    if p.suffix in (".yaml", ".yml") or "/" in value:
+        if not p.is_file():
+            raise RuntimeError(f"fleet file {p} does not exist")
+        return p.resolve()
+    f = graph.SHARE / "missions" / "fleets" / f"{value}.yaml"
+    if not f.is_file():
+        names = sorted(m.stem for m in (graph.SHARE / "missions" / "fleets").glob("*.yaml"))
+        raise RuntimeError(f"no fleet {value!r} in {f.parent} (there: {', '.join(names) or 'none'})")
+    return f
 
 
 def generate_launch_description():
