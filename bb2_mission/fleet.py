@@ -84,15 +84,16 @@ def _read(file: Path) -> dict[str, Any]:
         doc = yaml.safe_load(file.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise MissionError(f"no fleet file at {file}") from None
-    except (OSError, yaml.YAMLError) as exc:
-        raise MissionError(f"{file}: not a readable YAML file: {exc}") from None
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise MissionError(f"{file}: not a readable YAML file (UTF-8): {exc}") from None
     if not isinstance(doc, dict):
         raise MissionError(f"{file}: a fleet file is a mapping with 'boats', got {type(doc).__name__}")
     return doc
 
 
 def is_fleet_file(file: str | Path) -> bool:
-    """Whether ``file`` is a fleet file (a YAML mapping with ``boats``) rather than a mission file."""
+    """Whether ``file`` is a fleet file (a YAML mapping with ``boats``) rather than a mission file (False for a file
+    that is neither, or unreadable: the mission loader then says why)."""
     try:
         return "boats" in _read(Path(file))
     except MissionError:

@@ -56,6 +56,14 @@ def test_a_bad_fleet_file_is_refused_naming_the_boat(tmp_path, text, why):
         load_fleet(f)
 
 
+def test_an_unreadable_file_is_no_fleet_file_and_says_why(tmp_path):
+    f = tmp_path / "latin1.yaml"
+    f.write_bytes("boats: {b\xe9: straight}\n".encode("latin-1"))
+    assert not is_fleet_file(f) and not is_fleet_file(tmp_path / "none.yaml")
+    with pytest.raises(MissionError, match="not a readable YAML file"):
+        load_fleet(f)
+
+
 def test_a_missing_fleet_file_is_said():
     with pytest.raises(MissionError, match="no fleet file at"):
         load_fleet("/nonexistent/fleet.yaml")
