@@ -139,6 +139,7 @@ TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/dept
               SCENE_TOPIC, SEA_SURFACE_TOPIC)
 # a late reader still gets these: no reason to wait for one before the first step
 LATCHED_OUT = ("/bb2/sea", "/bb2/sensors/mountings", SCENE_TOPIC)
+STATUS_DELIVERY_TIMEOUT_S = 5.0  # a finished run waits at most this long (wall) for its statuses to reach the readers
 TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress",  # progress: end_at_progress
              "/bb2/recorder/ack")  # recorder_ack_window
 TWO_PI = 2.0 * math.pi
@@ -331,6 +332,7 @@ class Simulator(Node):
         self.diverged = ""
         self.done = False
         self._final_wait_since: float | None = None  # wall s the finished run began waiting for the recorder
+        self._status_wait_since: float | None = None  # wall s it began waiting for its statuses to be delivered
         self.exit_code = 0
         self._odom_msg = None
         self._t_start_wall = time.monotonic()
@@ -390,7 +392,28 @@ class Simulator(Node):
                 self.get_logger().warning(
                     f"the recorder did not acknowledge the final step t = {self.t:.3f} s within recorder_ack_timeout_s "
                     f"{self.ack.timeout_s:g} s: ending all the same (the bag may lack the last steps)")
+        if self.wait_for_readers and not self._statuses_delivered():
+            now = time.monotonic()
+            self._status_wait_since = self._status_wait_since or now
+            if now - self._status_wait_since < STATUS_DELIVERY_TIMEOUT_S:
+                return
+            self.get_logger().warning(f"the statuses were not delivered to every reader of bb2/status within "
+                                      f"{STATUS_DELIVERY_TIMEOUT_S:g} s: ending all the same")
         self.done = True
+
+    def _statuses_delivered(self) -> bool:
+        """Whether every reader of ``bb2/status`` the graph shows is matched with this node's status writer and has
+        acknowledged every status (the final one, ``finished``, included).  On a short run under load the recorder's
+        reader may match the status writer only after the last step: the writer's history (transient local) then
+        reaches it, if the writer is still there -- so the finished run waits for that before ending."""
+        from rclpy.duration import Duration
+
+        pub = self.pub["/bb2/status"]
+        try:
+            readers = self.count_subscribers(self.resolve_topic_name(node_topic_name("/bb2/status")))
+            return pub.get_subscription_count() >= readers and pub.wait_for_all_acked(Duration(seconds=0))
+        except Exception:  # noqa: BLE001 - a middleware that cannot tell: do not hold the end
+            return True
 
     def _locked(self, fn):
         def call(*args):
@@ -622,6 +645,8 @@ class Simulator(Node):
 
     def _tick(self, period: float) -> None:
         """Real-time step (the stepping thread, at its deadline ``self._next_tick``)."""
+        if self.finished and not self.done:
+            self._end_when_recorded()  # bounded wait for the statuses to reach the recorder
         if not self._stepping():
             return
         now = time.monotonic()

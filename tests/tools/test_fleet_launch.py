@@ -53,6 +53,10 @@ def test_a_fleet_file_flies_every_boat_into_one_bag_each_boat_as_alone(tmp_path)
         assert got.x.shape == (len(ref), 12) and not got.warnings, (boat, got.x.shape, got.warnings)
         assert np.max(np.abs(got.x - ref[:, 1:])) <= 1e-9, boat
         assert BagReader(run, boat).vehicle_base_link() == f"{boat}/base_link"
+        # its simulator's statuses reached the bag, the final one too (a finished run waits for their delivery:
+        # on a short run the recorder's reader may match the status writer only after the last step)
+        sim = [e.values["state"] for e in got.status if e.name == "bb2/simulator"]
+        assert sim and sim[-1] == "finished", (boat, sim)
     assert read_bag(run, vehicle="boat2").x[0, 1] == 20.0  # its own start: the fleet file's offset
     # each boat's nodes logged under its own run folder; the fleet's recorder and boat launchers in logs/
     assert (run / "boat1" / "logs" / "simulator.log").is_file() and (run / "logs" / "recorder.log").is_file()

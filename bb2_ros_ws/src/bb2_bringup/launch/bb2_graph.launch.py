@@ -61,18 +61,23 @@ ARGUMENTS = {
 }
 
 
-def mission_file(value: str) -> Path:
-    """A mission name (installed) or a file."""
+def installed_or_file(value: str, folder: Path, what: str) -> Path:
+    """A file installed in ``folder`` named without .yaml (``canyon``), or a file (``x.yaml``, ``dir/x``)."""
     p = Path(value).expanduser()
     if p.suffix in (".yaml", ".yml") or "/" in value:
         if not p.is_file():
-            raise RuntimeError(f"mission file {p} does not exist")
+            raise RuntimeError(f"{what} file {p} does not exist")
         return p.resolve()
-    f = SHARE / "missions" / f"{value}.yaml"
+    f = folder / f"{value}.yaml"
     if not f.is_file():
-        names = sorted(m.stem for m in (SHARE / "missions").glob("*.yaml"))
-        raise RuntimeError(f"no mission {value!r} in {SHARE / 'missions'} (there: {', '.join(names)})")
+        names = sorted(m.stem for m in folder.glob("*.yaml"))
+        raise RuntimeError(f"no {what} {value!r} in {folder} (there: {', '.join(names) or 'none'})")
     return f
+
+
+def mission_file(value: str) -> Path:
+    """A mission name (installed in share/bb2_bringup/missions) or a file."""
+    return installed_or_file(value, SHARE / "missions", "mission")
 
 
 def flag(value: str, name: str) -> bool:

@@ -92,16 +92,7 @@ def _fleet(context):
 
 def fleet_file(value: str) -> Path:
     """A shipped fleet's name (share/bb2_bringup/missions/fleets/NAME.yaml) or a fleet file."""
-    p = Path(value).expanduser()
-    if p.suffix in (".yaml", ".yml") or "/" in value:
-        if not p.is_file():
-            raise RuntimeError(f"fleet file {p} does not exist")
-        return p.resolve()
-    f = graph.SHARE / "missions" / "fleets" / f"{value}.yaml"
-    if not f.is_file():
-        names = sorted(m.stem for m in (graph.SHARE / "missions" / "fleets").glob("*.yaml"))
-        raise RuntimeError(f"no fleet {value!r} in {f.parent} (there: {', '.join(names) or 'none'})")
-    return f
+    return graph.installed_or_file(value, graph.SHARE / "missions" / "fleets", "fleet")
 
 
 def generate_launch_description():
