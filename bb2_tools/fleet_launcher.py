@@ -26,8 +26,8 @@ from pathlib import Path
 from bb2_sim.outputs import OutputError, claim_run_dir
 
 from bb2_tools.graph_monitor import GraphMonitor, claim_domain, free_domain_id
-from bb2_tools.launcher import (GRAPH_NODES, RECORDER_NODE_NAME, check_params_file, gap_lines, node_command,
-                                recorded_topics)
+from bb2_tools.launcher import (GRAPH_NODES, RECORDER_NODE_NAME, check_params_file, check_run_options, gap_lines,
+                                node_command, recorded_topics)
 from bb2_tools.supervisor import LaunchError, ProcessSpec, RestartPolicy, Supervisor, exit_cause
 
 BOAT_STOP_GRACE_S = 60.0  # a boat's launcher stops its graph on SIGINT (its recorder-less end: seconds)
@@ -43,10 +43,7 @@ def _refuse(args: argparse.Namespace) -> None:
                           "serves one boat)")
     if args.external_recorder:
         raise LaunchError("--external-recorder: a fleet file's launch starts the fleet's recorder itself")
-    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
-        raise LaunchError(f"--domain-id must be in 0..232, got {args.domain_id}")
-    if args.timeout is not None and not args.timeout > 0:
-        raise LaunchError(f"--timeout must be > 0, got {args.timeout}")
+    check_run_options(args)
 
 
 def boat_command(args: argparse.Namespace, mission: Path, boat: str, domain_id: int, run_dir: Path) -> list[str]:

@@ -750,6 +750,18 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
+def check_run_options(args: argparse.Namespace) -> None:
+    """The options of a run's limits and domain (a mission's or a fleet's): :class:`LaunchError` naming a bad one."""
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        raise LaunchError(f"--domain-id must be in 0..232, got {args.domain_id}")
+    if args.timeout is not None and not (args.timeout > 0 and math.isfinite(args.timeout)):
+        raise LaunchError(f"--timeout must be > 0 and finite, got {args.timeout}")
+    if not (args.stall_timeout >= 0 and math.isfinite(args.stall_timeout)):
+        raise LaunchError(f"--stall-timeout must be >= 0 and finite, got {args.stall_timeout}")
+    if not (args.ready_timeout > 0 and math.isfinite(args.ready_timeout)):
+        raise LaunchError(f"--ready-timeout must be > 0 and finite, got {args.ready_timeout}")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Console script ``bb2-launch``: exit 0 mission complete, 1 a node failed / the timeout passed, 2 bad input
     or an OS error (one line naming the file), 130 interrupted."""
@@ -779,14 +791,7 @@ def _main(argv: Sequence[str] | None) -> int:
     try:
         if args.mission is None:
             raise LaunchError("a mission file is required")
-        if args.domain_id is not None and not 0 <= args.domain_id <= 232:
-            raise LaunchError(f"--domain-id must be in 0..232, got {args.domain_id}")
-        if args.timeout is not None and not (args.timeout > 0 and math.isfinite(args.timeout)):
-            raise LaunchError(f"--timeout must be > 0 and finite, got {args.timeout}")
-        if not (args.stall_timeout >= 0 and math.isfinite(args.stall_timeout)):
-            raise LaunchError(f"--stall-timeout must be >= 0 and finite, got {args.stall_timeout}")
-        if not (args.ready_timeout > 0 and math.isfinite(args.ready_timeout)):
-            raise LaunchError(f"--ready-timeout must be > 0 and finite, got {args.ready_timeout}")
+        check_run_options(args)
         namespace = check_namespace(args.namespace)
         if args.external_recorder and args.no_record:
             raise LaunchError("--external-recorder (recorded elsewhere) and --no-record (not recorded) contradict")

@@ -35,10 +35,16 @@ Stopping: SIGINT or SIGTERM finish the bag (summary, ``rosbag2`` metadata record
 and exit 0.  A SIGKILL loses at most the open chunk (``--chunk-size`` bytes, or
 ``--flush-period`` seconds of data); ``bb2_tools.bagfile.recover`` repairs such a bag.
 
+A fleet (``--boats boat1 boat2``, parameter ``boats``): one recorder for every boat of one graph, each in its
+namespace: the boat's topics are recorded under their resolved names (``/boat1/bb2/odom``, ``/boat1/clock``), one
+``/tf`` and ``/tf_static`` for all (the frames are the boats' own, ``boat1/base_link``), each boat's messages logged
+on its own clock (``/boat1/clock`` with ``--use-sim-time``) and acknowledged on its ``/boat1/bb2/recorder/ack``
+(:class:`Vehicle`).  ``bb2_tools.bagfile.BagReader(bag, "boat1")`` reads one boat of it under the contract's names.
+
 Usage::
 
     python -m bb2_tools.recorder --out bags/run1 [--topics REGEX ...] [--chunk-size BYTES]
-        [--flush-period S] [--use-sim-time] [--no-tf] [--ros-args ...]
+        [--flush-period S] [--use-sim-time] [--no-tf] [--boats NS ...] [--ros-args ...]
 """
 from __future__ import annotations
 

@@ -111,3 +111,20 @@ def _simulator_pid(boat: str) -> int | None:
                 and f"__ns:=/{boat} " in cmd + " ":
             return int(stat.parent.name)
     return None
+
+
+def test_a_fleet_launch_refuses_bad_input_with_one_line_before_anything_starts(tmp_path, capsys):
+    from bb2_tools import launcher as L
+
+    fleet = _fleet(tmp_path, 3.0)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("boats:\n  boat1: c.yaml\n  boat2: nowhere.yaml\n")
+    for argv, why in (([str(fleet), "--namespace", "x"], "--namespace: a fleet file's boats are the namespaces"),
+                      ([str(fleet), "--foxglove"], "--foxglove is not available for a fleet file"),
+                      ([str(fleet), "--external-recorder"], "starts the fleet's recorder itself"),
+                      ([str(fleet), "--timeout", "-1"], "--timeout must be > 0"),
+                      ([str(bad)], "boat 'boat2': no mission 'nowhere.yaml'")):
+        assert L.main([*argv, "--bag-dir", str(tmp_path / "bags")]) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("bb2-launch: error: ") and why in err[0], (argv, err)
+    assert not (tmp_path / "bags").exists()  # nothing claimed, nothing started
