@@ -60,6 +60,11 @@ def test_a_fleet_file_flies_every_boat_into_one_bag_each_boat_as_alone(tmp_path)
     assert read_bag(run, vehicle="boat2").x[0, 1] == 20.0  # its own start: the fleet file's offset
     # each boat's nodes logged under its own run folder; the fleet's recorder and boat launchers in logs/
     assert (run / "boat1" / "logs" / "simulator.log").is_file() and (run / "logs" / "recorder.log").is_file()
+    # the fleet's bag opens in rosbags (the ROS-free reader) with every boat's topics, as the mcap library reads them
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([run]) as rb:
+        assert {c.topic: c.msgcount for c in rb.connections} == bag.message_counts
     a = subprocess.run([PY, "-m", "bb2_tools.analyze", str(run), "--no-report"], env=ros_env(), capture_output=True,
                        text=True, timeout=200)
     assert a.returncode == 0 and "fleet  2 vehicles: boat1, boat2" in a.stdout, a.stderr
