@@ -36,7 +36,12 @@ other one is read-only (fixed at start-up; the set is refused):
 ``wait_for_readers``   publish the first state only once every topic this node publishes has had a reader of the
                        node ``reader_node`` (``recorder``; '' = any node) for ``startup_settle_s`` (the readers'
                        side matches the writers a moment later: it then misses nothing), at most
-                       ``startup_timeout_s``.
+                       ``startup_timeout_s``.  In real time a finished run (``exit_at_end``) then ends only once
+                       the recorder acknowledges its final step (``/bb2/recorder/ack``, at most
+                       ``recorder_ack_timeout_s``): nothing holds a real-time run back for a recorder starved of
+                       CPU, and the steps it has not taken yet would go with this node's writers (``ros2 launch``;
+                       ``bb2-launch`` waits for it itself).  Its statuses too: a finished run waits (at most
+                       5 s) until every reader of ``bb2/status`` has them, the last one included.
 ``recorder_ack_window`` lockstep: step at most this many steps ahead of the newest ``/bb2/recorder/ack`` (the
                        recorder's acknowledgement of the states it holds), so a stalled recorder slows the graph
                        instead of losing messages (the controllers' answer is held meanwhile: no re-send, no
@@ -278,6 +283,9 @@ class Simulator(Node):
             ack_window = 0
         self.ack = RecorderAck(ack_window, step_ns=cv.seconds_to_ns(self.h), t0_ns=self._t_ns(),
                                timeout_s=ack_timeout)
+        # real time with a recorder: the end waits for its acknowledgement of the final step (no window: the steps
+        # never wait for it)
+        self._final_ack = self.time_mode is not TimeMode.LOCKSTEP and self.wait_for_readers
         self._held: StepDecision | None = None  # the controllers' answer, held while the recorder lags
         self._wait_said = False  # the current hold was said (past RECORDER_WAIT_WARN_S)
 
@@ -297,7 +305,7 @@ class Simulator(Node):
 
         self.sub_planes = sub("sensor_msgs/msg/JointState", "/bb2/planes/cmd", self._on_planes)
         self.sub_prop = sub("sensor_msgs/msg/JointState", "/bb2/propeller/cmd", self._on_propeller)
-        if self.ack.enabled:
+        if self.ack.enabled or self._final_ack:
             self.sub_ack = sub("std_msgs/msg/Header", "/bb2/recorder/ack", self._on_ack)
         if self.end_at_progress:
             self.sub_progress = node.create_subscription(
@@ -333,6 +341,7 @@ class Simulator(Node):
         self.done = False
         self._final_wait_since: float | None = None  # wall s the finished run began waiting for the recorder
         self._status_wait_since: float | None = None  # wall s it began waiting for its statuses to be delivered
+        self._final_wait_said = False  # real time: the wait for the recorder's final acknowledgement was said
         self.exit_code = 0
         self._odom_msg = None
         self._t_start_wall = time.monotonic()
@@ -381,17 +390,29 @@ class Simulator(Node):
         ``recorder_ack_timeout_s`` (wall), then ends all the same with a warning (the bag's gaps say the loss)."""
         if not self.exit_at_end or self.done:
             return
-        if self.time_mode is TimeMode.LOCKSTEP and self.ack.enabled and not self.ack.given_up:
+        # (real time: only a recorder that acknowledged during the run -- ours -- is waited for, not another reader)
+        final_ack = self._final_ack and self.ack.acked_ns is not None
+        if (self.ack.enabled and self.time_mode is TimeMode.LOCKSTEP or final_ack) and not self.ack.given_up:
             final_ns = self._t_ns()
             if self.ack.acked_ns is None or self.ack.acked_ns < final_ns:
                 now = time.monotonic()
                 if self._final_wait_since is None:
                     self._final_wait_since = now
+                if final_ack and not self._final_wait_said and now - self._final_wait_since > 0.5:
+                    self._final_wait_said = True
+                    self.get_logger().info(f"waiting for the recorder to acknowledge the final step t = "
+                                           f"{self.t:.3f} s (its last: t = {self.ack.acked_ns * 1e-9:.3f} s; at most "
+                                           f"{self.ack.timeout_s:g} s)")
                 if now - self._final_wait_since < self.ack.timeout_s:
                     return
                 self.get_logger().warning(
                     f"the recorder did not acknowledge the final step t = {self.t:.3f} s within recorder_ack_timeout_s "
                     f"{self.ack.timeout_s:g} s: ending all the same (the bag may lack the last steps)")
+                self._final_wait_said = False
+        if self._final_wait_said:
+            self.get_logger().info(f"the recorder acknowledged the final step after "
+                                   f"{time.monotonic() - self._final_wait_since:.1f} s")
+            self._final_wait_said = False
         if self.wait_for_readers and not self._statuses_delivered():
             now = time.monotonic()
             self._status_wait_since = self._status_wait_since or now

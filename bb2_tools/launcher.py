@@ -35,8 +35,8 @@ single boat's, its frames prefixed) and leaves ``/diagnostics`` (every boat's) o
 ``_NAME``.
 
 A fleet file (``bb2-launch FLEET.yaml``, :mod:`bb2_mission.fleet`): every boat flown as ``--namespace BOAT`` on one
-domain, one recorder for all boats into one bag (:mod:`bb2_tools.fleet_launcher`; ``--external-recorder`` is how each
-boat's launch is told its recorder runs elsewhere).
+domain, one recorder for all boats into one bag (:mod:`bb2_tools.fleet_launcher`, dispatched by the command,
+:mod:`bb2_tools.launch_cli`; ``--external-recorder`` is how each boat's launch is told its recorder runs elsewhere).
 
 Every child's stdout and stderr go to ``<run>/logs/<node>.log`` (and a ring buffer of the last
 lines).  ``<run>`` is the bag directory ``<bag-dir>/<mission>_<YYYYmmdd_HHMMSS>[_NAME]/`` (metadata.yaml
@@ -695,7 +695,8 @@ def check_restart_policies(policies: Mapping[str, RestartPolicy], groups: Sequen
             raise LaunchError(f"--restart: restarting the {name}{where} is refused: {why}")
 
 
-def _parse(argv: Sequence[str]) -> argparse.Namespace:
+def parse_args(argv: Sequence[str]) -> argparse.Namespace:
+    """The options of ``bb2-launch`` (a mission's and a fleet's)."""
     p = argparse.ArgumentParser(prog="bb2-launch", description=__doc__.split("\n\n")[0],
                                 epilog=__doc__.split("\n\n", 1)[1],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -769,7 +770,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    args = _parse(list(sys.argv[1:] if argv is None else argv))
+    args = parse_args(list(sys.argv[1:] if argv is None else argv))
     if args.install_ros_ws:
         ws = Path(__file__).resolve().parents[1] / "bb2_ros_ws" / "install_into_venv.py"
         if not ws.is_file():
@@ -782,15 +783,14 @@ def _main(argv: Sequence[str] | None) -> int:
     # ament index is read; the nodes inherit them
     if (bad := ros_environment_or_error("bb2-launch")) is not None:
         return bad
-    from bb2_mission.fleet import is_fleet_file
-
-    if args.mission is not None and is_fleet_file(args.mission):  # several boats: bb2_tools.fleet_launcher
-        from bb2_tools.fleet_launcher import run_fleet
-
-        return run_fleet(args)
     try:
         if args.mission is None:
             raise LaunchError("a mission file is required")
+        from bb2_mission.fleet import is_fleet_file
+
+        if is_fleet_file(args.mission):
+            raise LaunchError(f"{args.mission} is a fleet file: run it with bb2-launch "
+                              "(python -m bb2_tools.launch_cli)")
         check_run_options(args)
         namespace = check_namespace(args.namespace)
         if args.external_recorder and args.no_record:

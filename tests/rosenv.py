@@ -123,3 +123,29 @@ def claimed_domain() -> int:
             _domain_claims.append(fd)
             return d
     raise AssertionError("every ROS domain in 102..232 is claimed by another test process")
+
+
+def descendants(root: int) -> list[int]:
+    """The processes below ``root`` (from /proc), parents before their children."""
+    kids: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            ppid = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue
+        kids.setdefault(ppid, []).append(int(stat.parent.name))
+    out, todo = [], [root]
+    while todo:
+        for k in kids.get(todo.pop(0), []):
+            out.append(k)
+            todo.append(k)
+    return out
+
+
+def command_line(pid: int) -> str:
+    """The command line of ``pid`` ('' once it is gone)."""
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+    except OSError:
+        return ""
+

@@ -21,7 +21,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ros2_tooling import tooling_env, tooling_venv  # noqa: E402  (tests/ros2_tooling.py)
-from rosenv import claimed_domain, library_trajectory, ros_env  # noqa: E402
+from rosenv import claimed_domain, command_line, descendants, library_trajectory, ros_env  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=130)]  # slow: started first (tests/conftest.py)
 REPO = Path(__file__).resolve().parents[2]
@@ -144,6 +144,51 @@ def test_ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished(ws):
     assert out.count("process has finished cleanly") + len(died) == 6, out[-3000:]
     assert (tmp / "interrupted" / "metadata.yaml").is_file()
     assert max(states(tmp / "interrupted")) > 0.5
+
+
+def test_ros2_launch_in_real_time_ends_once_a_recorder_behind_holds_the_last_step(ws):
+    """In real time nothing holds the graph back for a recorder starved of CPU; at the end of the mission its
+    simulator (exit_at_end) ends the launch.  Here the recorder is frozen (SIGSTOP) from early in the run to past
+    the end: the simulator says it waits for the recorder's acknowledgement of the final step, the recorder
+    (continued) takes what the writers hold, and the bag ends on the mission's last step."""
+    env, install, tmp = ws
+    mission = tmp / "rt6.yaml"
+    mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nname: rt6\nduration_s: 6.0\n")
+    bag = tmp / "rt_behind"
+    p = launch(ws, claimed_domain(), "bb2_graph.launch.py", f"mission:={mission}", "time_mode:=realtime",
+               f"bag:={bag}")
+    seen: list[str] = []
+    recorder = None
+    try:
+        t0 = time.monotonic()
+        for line in p.stdout:  # the loop closed: the recorder has acknowledged steps by now
+            seen.append(line)
+            if "the controllers answered the first state" in line:
+                break
+            assert time.monotonic() - t0 < 120, "".join(seen[-50:])
+        time.sleep(1.0)
+        (recorder,) = [pid for pid in descendants(p.pid) if re.search(r"bb2_tools[/ .]recorder\b|recorder import",
+                                                                      command_line(pid))
+                       and "--ros-args" in command_line(pid)] or [None]
+        assert recorder is not None, [command_line(q) for q in descendants(p.pid)]
+        os.kill(recorder, signal.SIGSTOP)
+        for line in p.stdout:
+            seen.append(line)
+            if "waiting for the recorder to acknowledge the final step" in line:
+                break
+            assert "process has finished" not in line, "".join(seen[-50:])  # the simulator must not end yet
+            assert time.monotonic() - t0 < 150, "".join(seen[-50:])
+        time.sleep(1.0)
+        assert p.poll() is None, "".join(seen[-50:])
+        os.kill(recorder, signal.SIGCONT)
+        recorder = None
+        out = "".join(seen) + finish(p, 120)
+    finally:
+        if recorder is not None:
+            os.kill(recorder, signal.SIGCONT)
+    assert p.returncode == 0 and "the recorder acknowledged the final step after" in out, out[-3000:]
+    st = states(bag)
+    assert max(st) == 6.0 and len(st) == 121, (max(st), len(st))  # every state, the last one included
 
 
 def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):

@@ -30,6 +30,7 @@ import pyarrow.parquet as pq  # noqa: E402
 
 from bb2_tools.campaign import cli  # noqa: E402
 from bb2_tools.campaign.spec import parse_spec  # noqa: E402
+from rosenv import descendants  # noqa: E402  (tests/rosenv.py)
 
 pytestmark = pytest.mark.slow(seconds=150)  # started first (tests/conftest.py)
 
@@ -346,24 +347,6 @@ def test_a_torn_last_journal_line_is_cut_off_on_resume(tmp_path):
     assert j.path.read_text().endswith("}\n") and '"x": null' in j.path.read_text()
 
 
-def _descendants(pid: int) -> list[int]:
-    """Processes below ``pid`` (from /proc), children first."""
-    kids: dict[int, list[int]] = {}
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):
-                continue
-            kids.setdefault(ppid, []).append(int(d.name))
-    out, todo = [], [pid]
-    while todo:
-        for c in kids.get(todo.pop(), []):
-            out.append(c)
-            todo.append(c)
-    return out
-
-
 def test_a_sigkilled_worker_loses_no_run(reference):
     """SIGKILL one pool worker mid-campaign: the pool is rebuilt, the runs in flight fly again, the table is the
     same as the reference (no error rows added, none twice)."""
@@ -376,9 +359,9 @@ def test_a_sigkilled_worker_loses_no_run(reference):
     def on_row(row: dict) -> None:
         rows.append(row)
         if len(rows) == 2 and not killed:
-            servers = [p for p in _descendants(os.getpid())
+            servers = [p for p in descendants(os.getpid())
                        if b"forkserver" in Path(f"/proc/{p}/cmdline").read_bytes()]
-            workers = [w for srv in servers for w in _descendants(srv)]   # the pool's workers fork from it
+            workers = [w for srv in servers for w in descendants(srv)]   # the pool's workers fork from it
             assert workers, "no pool worker found"
             os.kill(workers[-1], signal.SIGKILL)
             killed.append(workers[-1])

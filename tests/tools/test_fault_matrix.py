@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pytest
 
-from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import descendants, ros_env  # noqa: E402  (tests/rosenv.py)
 
 from bb2_msgs_py.contract import QOS
 
@@ -60,28 +60,12 @@ def duration_s(node: str, fault: str, mode: str) -> float:
 
 
 # ================================================================================ processes
-def _descendants(root: int) -> list[int]:
-    kids: dict[int, list[int]] = {}
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            ppid = int(stat.read_text().rsplit(")", 1)[1].split()[1])
-        except (OSError, IndexError, ValueError):
-            continue
-        kids.setdefault(ppid, []).append(int(stat.parent.name))
-    out, todo = [], [root]
-    while todo:
-        for k in kids.get(todo.pop(0), []):
-            out.append(k)
-            todo.append(k)
-    return out
-
-
 def node_pid(launcher_pid: int, node: str) -> int | None:
     """The pid of ``node``'s process among the launcher's descendants (entry point, lib executable or ros2 run;
     the deepest match: under ``ros2 run`` the node's own process)."""
     pat = re.compile(rf"(bb2_ros\.{node} import|lib/bb2_ros/{node}\b|bb2_ros {node}\b)")
     found = None
-    for pid in _descendants(launcher_pid):  # parents before children
+    for pid in descendants(launcher_pid):  # parents before children
         try:
             cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
         except OSError:

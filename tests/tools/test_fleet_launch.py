@@ -36,7 +36,7 @@ def test_a_fleet_file_flies_every_boat_into_one_bag_each_boat_as_alone(tmp_path)
     from bb2_tools.bagfile import BagReader
 
     fleet = _fleet(tmp_path, 3.0)
-    p = subprocess.run([PY, "-m", "bb2_tools.launcher", str(fleet), "--bag-dir", str(tmp_path / "bags"),
+    p = subprocess.run([PY, "-m", "bb2_tools.launch_cli", str(fleet), "--bag-dir", str(tmp_path / "bags"),
                         "--timeout", "200"], cwd=tmp_path, env=ros_env(), capture_output=True, text=True, timeout=260)
     assert p.returncode == 0, p.stderr[-4000:]
     assert re.search(r"\[bb2-launch\] fleet pair: every boat ended, wall [0-9.]+ s, exit code 0", p.stderr), p.stderr
@@ -77,7 +77,7 @@ def test_a_boat_that_fails_is_said_and_the_others_fly_on(tmp_path):
     from bb2_tools.bagfile import BagReader
 
     fleet = _fleet(tmp_path, 12.0, 120.0)  # boat2 still flying when it is killed
-    p = subprocess.Popen([PY, "-m", "bb2_tools.launcher", str(fleet), "--bag-dir", str(tmp_path / "bags"),
+    p = subprocess.Popen([PY, "-m", "bb2_tools.launch_cli", str(fleet), "--bag-dir", str(tmp_path / "bags"),
                           "--timeout", "200"], cwd=tmp_path, env=ros_env(), stderr=subprocess.PIPE,
                          stdout=subprocess.DEVNULL, text=True)
     try:
@@ -119,7 +119,7 @@ def _simulator_pid(boat: str) -> int | None:
 
 
 def test_a_fleet_launch_refuses_bad_input_with_one_line_before_anything_starts(tmp_path, capsys):
-    from bb2_tools import launcher as L
+    from bb2_tools import launch_cli as L
 
     fleet = _fleet(tmp_path, 3.0)
     bad = tmp_path / "bad.yaml"
@@ -133,3 +133,7 @@ def test_a_fleet_launch_refuses_bad_input_with_one_line_before_anything_starts(t
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("bb2-launch: error: ") and why in err[0], (argv, err)
     assert not (tmp_path / "bags").exists()  # nothing claimed, nothing started
+    from bb2_tools import launcher  # the mission launcher alone says where a fleet file goes
+
+    assert launcher.main([str(fleet), "--bag-dir", str(tmp_path / "bags")]) == 2
+    assert "is a fleet file: run it with bb2-launch" in capsys.readouterr().err
