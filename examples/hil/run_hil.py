@@ -27,6 +27,10 @@ autopilot flies on its sensors alone (``--state-source sensors``: ``/bb2/sensors
 filter), not on the simulator's state.  The mission the processes get is the given one with ``sensors: SUITE`` and
 ``navigation: sensors`` (written beside the summary).
 
+In real time the autopilot runs at SCHED_FIFO priority 40 (``--autopilot-priority``), below the simulator's
+stepping thread: a real autopilot has a computer of its own, and on a shared, busy machine a starved one would
+miss the simulator's command timeout (seen beside two CPU hogs: 0.5 s without a command, the failsafe).
+
 Exit status: 0 the flight finished with finite states and no failsafe after the autopilot took over;
 1 otherwise (the monitor's summary says why).
 """
@@ -151,6 +155,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="fly on the sensors of this suite (tactical, mems or a suite file) instead of the state")
     p.add_argument("--command-timeout", type=float, default=0.5, help="simulator failsafe timeout, wall s")
     p.add_argument("--netns", action="store_true", help="autopilot on another network host (namespaces, root)")
+    p.add_argument("--autopilot-priority", type=int, default=40, metavar="N",
+                   help="real time: the autopilot process's SCHED_FIFO priority, below the simulator's stepping "
+                        "thread (50), as if it had a computer of its own (needs root or CAP_SYS_NICE; refused: "
+                        "normal scheduling, said); 0 = normal scheduling (default 40)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: random in 100..230)")
     p.add_argument("--summary", type=Path, default=None, help="write the monitor's JSON summary here")
     p.add_argument("--trajectory", type=Path, default=None,
@@ -198,8 +206,10 @@ def main(argv: list[str] | None = None) -> int:
                                    "--summary", str(summary_file), "--timeout", str(args.duration / args.rate_hz * 20
                                                                                    + 120)],
                        env, net.bench if net else None)
+        priority = args.autopilot_priority if args.mode == "realtime" else 0
         autopilot = Proc("autopilot", [sys.executable, str(HERE / "external_autopilot.py"), "--mission", mission,
-                                       *source], env, net.autopilot if net else None)
+                                       *source, "--realtime-priority", str(priority)], env,
+                         net.autopilot if net else None)
         procs += [monitor, autopilot]
         if not (autopilot.wait_for("external autopilot ready", 60) and monitor.wait_for("hil monitor ready", 60)):
             print("run_hil: the autopilot or the monitor did not come up", file=sys.stderr)
