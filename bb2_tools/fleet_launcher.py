@@ -25,7 +25,7 @@ from pathlib import Path
 
 from bb2_sim.outputs import OutputError, claim_run_dir
 
-from bb2_tools.graph_monitor import GraphMonitor, claim_domain, free_domain_id
+from bb2_tools.graph_monitor import domain_monitor
 from bb2_tools.launcher import (GRAPH_NODES, RECORDER_NODE_NAME, check_params_file, check_run_options, gap_lines,
                                 node_command, recorded_topics)
 from bb2_tools.supervisor import LaunchError, ProcessSpec, RestartPolicy, Supervisor, exit_cause
@@ -89,11 +89,7 @@ def run_fleet(args: argparse.Namespace) -> int:
         return 2
     boats = list(missions)
     try:
-        if args.domain_id is not None:
-            monitor = GraphMonitor(args.domain_id)
-            monitor.domain_lock_fd = claim_domain(args.domain_id)
-        else:
-            monitor = free_domain_id()
+        monitor = domain_monitor(args.domain_id)
     except LaunchError as exc:
         print(f"bb2-launch: error: {exc}", file=sys.stderr)
         return 2

@@ -251,6 +251,17 @@ def claim_domain(domain_id: int, lock_dir: Path | None = None) -> int | None:
     return fd
 
 
+def domain_monitor(domain_id: int | None, **monitor_kw) -> GraphMonitor:
+    """A :class:`GraphMonitor` on ``domain_id``, claimed for this process when no other holds it
+    (``domain_lock_fd`` None: another launch holds it), or with ``domain_id`` None on a free one
+    (:func:`free_domain_id`)."""
+    if domain_id is None:
+        return free_domain_id(**monitor_kw)
+    monitor = GraphMonitor(domain_id, **monitor_kw)
+    monitor.domain_lock_fd = claim_domain(domain_id)
+    return monitor
+
+
 def free_domain_id(*, rng: random.Random | None = None, tries: int = 8, listen_s: float = 0.5,
                    lock_dir: Path | None = None, **monitor_kw) -> GraphMonitor:
     """A :class:`GraphMonitor` on a random domain id (1..101) that no other launch of this machine has claimed

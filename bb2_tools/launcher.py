@@ -74,7 +74,7 @@ from bb2_ros.container import NODE_CLASSES
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
 from bb2_ros.node_common import PUBLISHED_DIR_ENV
 from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE
-from bb2_tools.graph_monitor import END_AT, GraphMonitor, claim_domain, format_status, free_domain_id
+from bb2_tools.graph_monitor import END_AT, GraphMonitor, domain_monitor, format_status
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
                                   Supervisor, parse_restart_policies)
 
@@ -818,14 +818,10 @@ def _main(argv: Sequence[str] | None) -> int:
         return 2
 
     try:
-        if args.domain_id is not None:
-            monitor = GraphMonitor(args.domain_id, end_at=args.end_at, namespace=namespace)
-            monitor.domain_lock_fd = claim_domain(args.domain_id)
-            if monitor.domain_lock_fd is None and not namespace:
-                print(f"[bb2-launch] warning: another bb2-launch runs on ROS_DOMAIN_ID={args.domain_id}: the two "
-                      "graphs will see each other's topics (give each its own --namespace)", file=sys.stderr)
-        else:
-            monitor = free_domain_id(end_at=args.end_at, namespace=namespace)
+        monitor = domain_monitor(args.domain_id, end_at=args.end_at, namespace=namespace)
+        if args.domain_id is not None and monitor.domain_lock_fd is None and not namespace:
+            print(f"[bb2-launch] warning: another bb2-launch runs on ROS_DOMAIN_ID={args.domain_id}: the two "
+                  "graphs will see each other's topics (give each its own --namespace)", file=sys.stderr)
     except LaunchError as exc:
         print(f"bb2-launch: error: {exc}", file=sys.stderr)
         return 2
