@@ -45,13 +45,18 @@ class FleetBoat:
     mission: Mission
 
     def mission_document(self, fleet_dir: Path) -> dict[str, Any]:
-        """The boat's mission file content: ``extends`` its base; the files its changes name made absolute."""
-        doc: dict[str, Any] = {"extends": str(self.base)}
-        for key, value in self.changes.items():
-            if key in _PATH_KEYS and isinstance(value, str) and (fleet_dir / value).exists():
-                value = str((fleet_dir / value).resolve())
-            doc[key] = value
-        return doc
+        """The boat's mission file content (:func:`_mission_document`)."""
+        return _mission_document(self.base, self.changes, fleet_dir)
+
+
+def _mission_document(base: Path, changes: dict[str, Any], fleet_dir: Path) -> dict[str, Any]:
+    """A boat's mission file content: ``extends`` its base; the files its changes name made absolute."""
+    doc: dict[str, Any] = {"extends": str(base)}
+    for key, value in changes.items():
+        if key in _PATH_KEYS and isinstance(value, str) and (fleet_dir / value).exists():
+            value = str((fleet_dir / value).resolve())
+        doc[key] = value
+    return doc
 
 
 @dataclass(frozen=True)
@@ -133,9 +138,8 @@ def load_fleet(file: str | Path) -> Fleet:
                 raise MissionError(f"{where}: give the mission it starts from as 'mission', not 'extends'")
         else:
             base, changes = _mission_file(value, f.parent, where), {}
-        boat = FleetBoat(name, base, changes, mission=None)  # type: ignore[arg-type]
         try:
-            mission = _load_boat(boat, f)
+            mission = _load_boat(name, base, changes, f)
         except MissionError as exc:
             raise MissionError(f"{where}: {exc}") from None
         boats[name] = FleetBoat(name, base, changes, mission)
@@ -143,14 +147,14 @@ def load_fleet(file: str | Path) -> Fleet:
     return Fleet(str(name), str(doc.get("description", "")), f.resolve(), boats)
 
 
-def _load_boat(boat: FleetBoat, fleet_file: Path) -> Mission:
+def _load_boat(name: str, base: Path, changes: dict[str, Any], fleet_file: Path) -> Mission:
     """The boat's mission as the nodes will load it (its mission document, written beside nothing: loaded from a
     temporary file so ``extends`` and the files resolve exactly as they will)."""
-    if not boat.changes:
-        return load_mission(boat.base)
+    if not changes:
+        return load_mission(base)
     import tempfile
 
     with tempfile.TemporaryDirectory(prefix="bb2_fleet_") as tmp:
-        t = Path(tmp) / f"{boat.name}.yaml"
-        t.write_text(yaml.safe_dump(boat.mission_document(fleet_file.parent), sort_keys=False))
+        t = Path(tmp) / f"{name}.yaml"
+        t.write_text(yaml.safe_dump(_mission_document(base, changes, fleet_file.parent), sort_keys=False))
         return load_mission(t)
