@@ -474,6 +474,34 @@ def write_publication_counts(process: str, nodes) -> None:
         print(f"[{process}] cannot write its publication counts into {folder}: {exc}", file=sys.stderr)
 
 
+DELIVERY_AT_EXIT_S = 1.0
+"""Wall seconds a node process waits, once told to stop, for its reliable readers to acknowledge what its writers
+published (:func:`deliver_pending`) before it destroys them."""
+
+
+def deliver_pending(nodes, timeout_s: float | None = None) -> list[str]:
+    """Wait at most ``timeout_s`` in all for every reliable writer of ``nodes`` to have each of its samples
+    acknowledged by its matched readers: a writer destroyed with samples still on their way takes them with it (a
+    node's last status, published by its timer just before the stop, was missing from a bag).  Returns the topics
+    whose samples were not all acknowledged in time (a reader gone or frozen: nothing more can be done).
+    ``timeout_s`` None: :data:`DELIVERY_AT_EXIT_S`."""
+    from rclpy.duration import Duration
+
+    deadline = time.monotonic() + (DELIVERY_AT_EXIT_S if timeout_s is None else timeout_s)
+    late = []
+    for node in nodes:
+        for pub in list(getattr(node, "publishers", ())):
+            try:
+                if pub.get_subscription_count() == 0:
+                    continue
+                left = max(deadline - time.monotonic(), 0.0)
+                if not pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))):
+                    late.append(pub.topic_name)
+            except Exception:  # noqa: BLE001 - a writer already gone or a middleware that cannot tell
+                continue
+    return late
+
+
 def run_node(name: str, factory: Callable[[list[str]], Any], args: Sequence[str] | None = None) -> int:
     """Init rclpy with ``args`` (``sys.argv`` when None), build ``factory(argv)``, spin until SIGINT/SIGTERM.
 
@@ -541,6 +569,7 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
     finally:
         watchdog.arm(code)  # from here on the process has TEARDOWN_S to be gone
         write_publication_counts(process, [_node_of(sh) for sh in shells])
+        deliver_pending([_node_of(sh) for sh in shells])
         for shell in shells:
             try:
                 if hasattr(shell, "close"):
