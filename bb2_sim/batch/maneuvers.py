@@ -109,3 +109,95 @@ def batch_for_maneuvers(settings: Sequence[ManeuverSettings], model: BB2Model | 
                          f"{S[0].profile!r}")
     bm = BatchModel.from_sea_states(model, [s.sea_state for s in S], exact=exact)
     return BatchSimulator(bm, np.array([s.initial_state() for s in S])), BatchManeuverCommander(S)
+
+
+def _log_rows(rec, rows: np.ndarray, params, seas: list) -> np.ndarray:
+    """The trajectory rows (``OUTPUT_COLUMNS``) of the boats ``rows`` (indices into ``rec.boats``) of a batch step
+    record: :func:`bb2_sim.maneuvers.record_row` on arrays, the same operations in the same order (so bit for bit
+    the single run's rows); the sea's elevation per boat by the scalar function."""
+    from ..maneuvers import OUTPUT_COLUMNS
+
+    boats = rec.boats[rows]
+    x = rec.x[boats]
+    prop = rec.ev.prop
+    n = rec.act.rps[rows]
+    KT = prop.KT[rows]
+    td = prop.t[rows]
+    thrust_ow = KT * params.rho * n * n * params.prop_D ** 4
+    out = np.empty((len(rows), len(OUTPUT_COLUMNS)))
+    out[:, 0] = rec.t
+    out[:, 1:4] = x[:, 0:3]
+    out[:, 4:7] = x[:, 3:6] * RAD2DEG
+    out[:, 7:10] = x[:, 6:9]
+    out[:, 10:13] = x[:, 9:12] * RAD2DEG
+    out[:, 13] = np.sqrt(x[:, 6] ** 2 + x[:, 7] ** 2 + x[:, 8] ** 2)
+    out[:, 14:19] = rec.act.planes_deg[rows]
+    out[:, 19:24] = rec.commands_planes_deg[boats]
+    out[:, 24] = n
+    out[:, 25] = prop.J[rows]
+    out[:, 26] = KT
+    out[:, 27] = prop.KQ[rows]
+    out[:, 28] = thrust_ow
+    out[:, 29] = td
+    out[:, 30] = (1.0 - td) * thrust_ow
+    out[:, 31] = prop.torque[rows]
+    out[:, 32] = rec.act.dmass_kg[rows]
+    out[:, 33] = [0.0 if seas[b] is None else float(seas[b].elevation(x[j, 0], x[j, 1], rec.t))
+                  for j, b in enumerate(boats)]
+    return out
+
+
+def run_maneuvers_batch(settings: Sequence[ManeuverSettings], model: BB2Model | None = None, *,
+                        hull_mesh: str | None = None, log_every: int = 2, exact: bool = True) -> list:
+    """Fly the maneuvers ``settings`` together, one boat each: the batch twin of
+    :func:`bb2_sim.maneuvers.run_maneuver`, returning one :class:`~bb2_sim.maneuvers.ManeuverResult` per boat
+    (its trajectory, reversals and divergence as that function gives them; ``exact``: bit for bit, see
+    :class:`BatchModel`).  Boats may have different durations (each is logged to its own end; the batch steps to
+    the longest).  A boat that diverges stops in the same step as alone, but its error says what the batch saw (a
+    non-finite stage or state), where the single run may name the exception that made it (float division by
+    zero).  The wall time of each result is its share of the batch's.  Same restrictions as
+    :func:`batch_for_maneuvers` (one physics profile, the authors' sea states, no environment)."""
+    import time
+
+    from ..maneuvers import OUTPUT_COLUMNS, ManeuverResult
+    from ..sea.sea import AuthorsTableSea
+
+    S = list(settings)
+    t0 = time.perf_counter()
+    sim, cmd = batch_for_maneuvers(S, model, hull_mesh, exact=exact)
+    params = sim.model.params
+    seas = [None if w.calm else AuthorsTableSea(w, params.g) for w in sim.model.waves.waves]
+    n_steps = np.array([int(round(s.duration / sim.h)) for s in S])
+    n_rows = n_steps // log_every + 1
+    traj = [np.empty((int(r), len(OUTPUT_COLUMNS))) for r in n_rows]
+    logged = np.zeros(len(S), dtype=int)
+    last_t = np.full(len(S), np.nan)                 # the time of each boat's last commanded step
+    errors: dict = {}
+    for k in range(int(n_steps.max()) + 1):
+        planes, rps = cmd.step(sim.t, sim.x)
+        live = (k <= n_steps) & ~sim.diverged
+        last_t[live] = sim.t
+        if not live.any():
+            break
+        rec = sim.step(planes, rps)
+        for b in rec.newly_diverged:                 # (a boat past its own end may diverge: not its run's error)
+            if live[b]:
+                errors[int(b)] = sim.errors[int(b)]
+        if k % log_every:
+            continue
+        ok = live[rec.boats] & ~np.isin(rec.boats, rec.newly_diverged)
+        rows = np.flatnonzero(ok)
+        if len(rows):
+            block = _log_rows(rec, rows, params, seas)
+            for j, b in enumerate(rec.boats[rows]):
+                traj[b][logged[b]] = block[j]
+                logged[b] += 1
+    wall = (time.perf_counter() - t0) / len(S)
+    out = []
+    for b, s in enumerate(S):
+        arr = traj[b][:logged[b]]
+        reversals = [t for t in cmd.zigzag.reversals[b] if t <= last_t[b]] \
+            if "zigzag" in (s.vertical, s.horizontal) else []
+        out.append(ManeuverResult(s, {c: arr[:, i] for i, c in enumerate(OUTPUT_COLUMNS)}, errors.get(b),
+                                  reversals, wall))
+    return out

@@ -264,3 +264,39 @@ def test_bad_shapes_and_refused_environments_give_clear_errors(calm_model):
     with pytest.raises(ValueError, match="batch: currents not supported yet"):
         BatchModel(BB2Model(calm_model.surfaces, current=Current(0.5, 45.0)), n_boats=2)
     assert sim.n == 0 and not sim.diverged.any()          # nothing stepped by the refused calls
+
+
+# ------------------------------------------------------------------------------------------------ (e) whole runs
+def test_maneuvers_flown_together_give_each_run_maneuver_result(calm_model):
+    """``run_maneuvers_batch``: what ``run_maneuver`` gives each maneuver alone -- trajectory (every logged column,
+    the sea's elevation included), zig-zag reversals, divergence -- bit for bit in the exact mode, with boats of
+    different durations and one that diverges at its first step (at rest: quirk Q13)."""
+    from bb2_sim.batch.maneuvers import run_maneuvers_batch
+    from bb2_sim.maneuvers import OUTPUT_COLUMNS, run_maneuver
+
+    settings = [
+        maneuver_settings("hzz", sea_state=3, duration=14.0),
+        maneuver_settings("turning-circle", duration=9.0),
+        maneuver_settings("vzz", amplitude_deg=5.0, check_deg=0.5, sail_planes="pid", duration=12.0),
+        maneuver_settings("open-loop", planes_deg=(2, -2, 2, -2, 1), sea_state=5, duration=6.0),
+        maneuver_settings("self-propulsion", propeller="speed-pi", speed_mps=0.0, duration=5.0),
+        maneuver_settings("depth-heading", duration=11.0),
+    ]
+    batch = run_maneuvers_batch(settings, calm_model)
+    for s, b in zip(settings, batch):
+        one = run_maneuver(s, _single(calm_model, s.sea_state))
+        assert b.settings is s and list(b.traj) == OUTPUT_COLUMNS
+        for c in OUTPUT_COLUMNS:
+            assert b.traj[c].shape == one.traj[c].shape, (s.name, c)
+            if _libm_agrees():
+                assert np.array_equal(b.traj[c], one.traj[c]), (s.name, c)
+            else:
+                np.testing.assert_allclose(b.traj[c], one.traj[c], rtol=1e-9, atol=1e-9)
+        assert b.reversals == one.reversals, s.name
+        # (a divergence is found in the same step; its message says what the batch saw: a non-finite stage, where
+        # the single run may have stopped at the exception that made it)
+        assert type(b.error) is type(one.error), s.name
+    assert batch[2].reversals                                           # the vertical zig-zag switched
+    assert batch[4].error is not None and len(batch[4].traj["t_s"]) == 0  # diverged at once, nothing logged
+    assert batch[1].traj["t_s"][-1] == pytest.approx(9.0) and batch[0].traj["t_s"][-1] == pytest.approx(14.0)
+    assert np.abs(batch[3].traj["eta_cg_m"]).max() > 0.1                # the sea state 5 boat's surface
