@@ -4,8 +4,9 @@ Each boat has its own state, actuators, Derivative memory, regular wave (sea sta
 N single :class:`bb2_sim.integrator.Simulator` runs to round-off (``exact=True``: bit for bit). Irregular seas and
 currents are refused. Modules: ``model`` (:class:`BatchModel`, one evaluation), ``simulator``
 (:class:`BatchSimulator`, ode3), ``maneuvers`` (the v12 autopilot maneuvers per boat: ``BatchManeuverCommander``,
-``batch_for_maneuvers``, ``run_maneuvers_batch``: the twin of ``run_maneuver``), ``autopilot`` (v12 PID/PD, speed PI), and the twins of the scalar force modules:
-``lookup``, ``hull``, ``planes``, ``propeller``, ``pressure``, ``rigid_body``, ``actuators``, ``memory``, ``waves``.
+``batch_for_maneuvers``, ``run_maneuvers_batch``: the twin of ``run_maneuver``), ``autopilot`` (v12 PID/PD, speed
+PI), and the twins of the scalar force modules: ``lookup``, ``hull``, ``planes``, ``propeller``, ``pressure``,
+``rigid_body``, ``actuators``, ``memory``, ``waves``.
 """
 from .model import BatchEvaluation, BatchModel
 from .simulator import BatchSimulator, BatchStepRecord
