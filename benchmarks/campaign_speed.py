@@ -2,7 +2,7 @@
 one-process-per-run baseline; plus the memory of building the results of a 100,000-run journal.
 
     .venv/bin/python benchmarks/campaign_speed.py [--mission missions/canyon.yaml] [--runs 8]
-        [--duration S] [--no-baseline] [--no-ray] [--store-rows 100000]
+        [--duration S] [--no-baseline] [--no-ray] [--store-rows 100000] [--maneuvers 256] [--only-maneuvers]
 
 Every campaign is the same SPEC (the mission with the guidance look-ahead ``stack.guidance.d_m`` drawn uniform in
 [200, 300] m and ``adaptation`` on/off): runs/s is runs / wall time of the engine (pool or cluster start-up
@@ -10,6 +10,10 @@ included), and "1000 runs" is the projection 1000 / (runs/s).  Goals: 1,000 cany
 <= 10 min on this 2-core machine; on Ray, K nodes >= 0.9 K x one node's throughput -- measured here with
 Ray's own multi-node test cluster (``ray.cluster_utils.Cluster``: K raylets of 1 CPU each on this machine,
 reported as such).  The baseline is today's way: one ``bb2-sim mission`` process per run, two at a time.
+
+``--maneuvers N``: a campaign of N turning circles (60 s; rudder, sea state 0/3/5 and speed drawn) flown by the
+local pool with 2 workers, each worker flying its runs together in the batch ROM (``--batch 64``, the default) and
+one by one (``--batch 1``): maneuver runs per second, the ratio, and whether the two tables are equal.
 """
 from __future__ import annotations
 
@@ -125,6 +129,21 @@ def store_memory(rows: int) -> str:
             f"+{(after - before) / 1024:.0f} MB, results.parquet {size / 1e6:.1f} MB")
 
 
+def maneuver_batches(n: int) -> None:
+    spec = parse_spec({"name": "batch_speed", "maneuver": {"name": "turning-circle", "options": {"duration": 60}},
+                       "seed": 2, "samples": n,
+                       "vary": {"rudder_deg": {"uniform": [15.0, 35.0]}, "sea_state": {"choice": [0, 3, 5]},
+                                "speed_mps": {"uniform": [3.0, 6.0]}},
+                       "collect": ["tactical_diameter_m", "peak_roll_rad", "z_change_m"]})
+    probe(spec)
+    print(f"maneuver campaign: {n} turning circles of 60 s (sea states 0/3/5), local pool of 2 workers")
+    w1, r1 = timed(LocalEngine(2, batch=1), spec, n)
+    print(line("one by one (--batch 1)", n, w1))
+    w64, r64 = timed(LocalEngine(2, batch=64), spec, n)
+    print(line("together in the batch ROM (--batch 64)", n, w64, n / w1))
+    print(f"  batch / one-by-one throughput: {w1 / w64:.2f}; tables equal to the last digit: {key(r1) == key(r64)}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mission", default=str(REPO / "missions" / "canyon.yaml"))
@@ -133,8 +152,13 @@ def main(argv=None) -> int:
     ap.add_argument("--no-baseline", action="store_true")
     ap.add_argument("--no-ray", action="store_true")
     ap.add_argument("--store-rows", type=int, default=100_000)
+    ap.add_argument("--maneuvers", type=int, default=256, help="turning circles of the batch comparison (0: skip)")
+    ap.add_argument("--only-maneuvers", action="store_true", help="only the maneuver batch comparison")
     a = ap.parse_args(argv)
     os.environ.setdefault("MPLBACKEND", "Agg")
+    if a.only_maneuvers:
+        maneuver_batches(a.maneuvers)
+        return 0
     spec = make_spec(a.mission, a.runs, a.duration)
     n = min(a.runs, spec.n_runs)
     print(f"campaign_speed: {n} runs of {a.mission} ({'duration ' + str(a.duration) + ' s' if a.duration else 'full'}"
@@ -169,6 +193,8 @@ def main(argv=None) -> int:
           f"workers -> {'MET' if minutes <= 10 else 'NOT MET'}  (load average {os.getloadavg()[0]:.1f} at the end)")
     if a.store_rows:
         print(store_memory(a.store_rows))
+    if a.maneuvers:
+        maneuver_batches(a.maneuvers)
     return 0
 
 

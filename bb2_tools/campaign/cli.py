@@ -1,6 +1,7 @@
 """``bb2-campaign``: fly a Monte Carlo / grid campaign of missions or maneuvers (see :mod:`bb2_tools.campaign`).
 
     bb2-campaign SPEC.yaml [--out DIR] [--engine local|ray] [--address ADDR] [--workers N] [--resume] [--graph]
+                 [--batch N]
     bb2-campaign SPEC.yaml --only INDEX --out-run DIR
 
 Exit status: 0 every run recorded (whatever their status), 2 bad input (one line naming the field), 130
@@ -56,6 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                       "(default: start a Ray instance for this driver)")
     p.add_argument("--workers", type=_positive_int, metavar="N",
                    help="local: worker processes (default: CPUs); ray: runs in flight (default: 2 x CPUs)")
+    p.add_argument("--batch", type=_positive_int, metavar="N", default=None,
+                   help="maneuver campaigns: the most runs one worker flies together in the batch ROM, bit for bit "
+                        "what each gives alone (default 64; 1: every run alone)")
     p.add_argument("--resume", action="store_true", help="finish exactly the runs missing from DIR")
     p.add_argument("--only", type=_index, metavar="INDEX", help="fly run INDEX alone (needs --out-run)")
     p.add_argument("--out-run", metavar="DIR", help="--only: where that run's CSV, figures and row go")
@@ -183,7 +187,7 @@ def _run_campaign(spec: Any, out: Path, a: argparse.Namespace) -> int:
             out.mkdir(parents=True, exist_ok=True)
             write_campaign_yaml(out, spec)
             done = set()
-        engine = make_engine(a.engine, a.workers, a.address)
+        engine = make_engine(a.engine, a.workers, a.address, **({"batch": a.batch} if a.batch else {}))
     except SpecError as e:
         return _fail(e)
     except OSError as e:

@@ -1,9 +1,10 @@
 """Where the runs fly: ``local`` (a process pool on this machine) or ``ray`` (a Ray cluster).
 
-Both call :func:`bb2_tools.campaign.worker.run_task` for one index at a time and hand each row to the
-driver's ``on_row`` as it lands, so the results are the same whatever the engine, the number of workers or
-the order of completion.  At most a small window of runs is in flight (about twice the workers), so a
-100,000-run campaign never holds more than that in memory.
+Both call :func:`bb2_tools.campaign.worker.run_tasks` for a chunk of runs (one run, or for a maneuver campaign up
+to ``batch`` runs flown together by the batch ROM: :func:`chunk_size`) and hand each row to the driver's ``on_row``
+as it lands, so the results are the same whatever the engine, the number of workers, the chunks or the order of
+completion.  At most a small window of chunks is in flight (about twice the workers), so a 100,000-run campaign
+never holds more than that in memory.
 
 A worker that dies (SIGKILL, out of memory) breaks the local pool: the pool is rebuilt and the runs that
 were in flight are flown again; a run in flight at three such deaths is recorded as ``error``.  Ray retries
@@ -17,11 +18,13 @@ import os
 from typing import Any, Callable, Iterable
 
 from bb2_tools.campaign.spec import CampaignSpec
-from bb2_tools.campaign.worker import run_task
+from bb2_tools.campaign.worker import BATCH_MIN, batched, run_tasks
 
-__all__ = ["LocalEngine", "RayEngine", "make_engine", "ENGINES"]
+__all__ = ["LocalEngine", "RayEngine", "make_engine", "chunk_size", "ENGINES", "DEFAULT_BATCH"]
 
 ENGINES = ("local", "ray")
+DEFAULT_BATCH = 64
+"""Most maneuver runs one worker flies together (``bb2-campaign --batch``)."""
 _MAX_ATTEMPTS = 3
 _PRELOAD = ["bb2_tools.campaign.worker", "bb2_mission.runner", "bb2_mission.schema", "bb2_sim.maneuvers",
             "bb2_sim.metrics", "scipy.spatial", "scipy.special"]
@@ -39,9 +42,21 @@ def _init_worker(spec: CampaignSpec) -> None:
     os.environ.setdefault("MPLBACKEND", "Agg")
 
 
-def _local_task(index: int) -> dict[str, Any]:
+def _local_task(indices: list[int]) -> list[dict[str, Any]]:
     assert _SPEC is not None
-    return run_task(_SPEC, index)
+    return run_tasks(_SPEC, indices)
+
+
+def chunk_size(spec: CampaignSpec, remaining: int, workers: int, batch: int = DEFAULT_BATCH) -> int:
+    """Runs per task: 1, or for a maneuver campaign the remaining runs shared among the workers, at most
+    ``batch`` (below :data:`~bb2_tools.campaign.worker.BATCH_MIN` the batch ROM does not pay: 1)."""
+    if not batched(spec) or batch < BATCH_MIN:
+        return 1
+    return max(1, min(int(batch), math.ceil(remaining / max(1, workers))))
+
+
+def _take(pending: collections.deque, n: int) -> list[int]:
+    return [pending.popleft() for _ in range(min(n, len(pending)))]
 
 
 def _lost_row(spec: CampaignSpec, index: int, why: str) -> dict[str, Any]:
@@ -54,8 +69,9 @@ class LocalEngine:
 
     name = "local"
 
-    def __init__(self, workers: int | None = None) -> None:
+    def __init__(self, workers: int | None = None, batch: int = DEFAULT_BATCH) -> None:
         self.workers = max(1, int(workers or os.cpu_count() or 1))
+        self.batch = int(batch)
 
     def describe(self) -> str:
         return f"local, {self.workers} worker process{'es' if self.workers != 1 else ''}"
@@ -74,14 +90,14 @@ class LocalEngine:
             broken = False
             with ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_init_worker,
                                      initargs=(spec,)) as pool:
-                inflight: dict[Any, int] = {}
+                inflight: dict[Any, list[int]] = {}
                 while (pending or inflight) and not broken:
                     while pending and len(inflight) < window:
-                        i = pending.popleft()
+                        chunk = _take(pending, chunk_size(spec, len(pending), self.workers, self.batch))
                         try:
-                            inflight[pool.submit(_local_task, i)] = i
+                            inflight[pool.submit(_local_task, chunk)] = chunk
                         except BrokenProcessPool:
-                            pending.appendleft(i)
+                            pending.extendleft(reversed(chunk))
                             broken = True
                             break
                     if not inflight:
@@ -92,22 +108,25 @@ class LocalEngine:
                         if isinstance(exc, BrokenProcessPool):
                             broken = True
                             continue
-                        i = inflight.pop(f)
-                        on_row(f.result() if exc is None else
-                               _lost_row(spec, i, " ".join(f"{type(exc).__name__}: {exc}".split())[:2000]))
+                        chunk = inflight.pop(f)
+                        why = "" if exc is None else " ".join(f"{type(exc).__name__}: {exc}".split())[:2000]
+                        for row in (f.result() if exc is None else [_lost_row(spec, i, why) for i in chunk]):
+                            on_row(row)
                     if on_tick:
                         on_tick()
                 if broken:   # a worker died: fly what was in flight again (a run at three deaths is an error)
-                    for f, i in sorted(inflight.items(), key=lambda fi: -fi[1]):
+                    for f, chunk in sorted(inflight.items(), key=lambda fc: -fc[1][0]):
                         if f.done() and f.exception() is None:
-                            on_row(f.result())
+                            for row in f.result():
+                                on_row(row)
                             continue
-                        attempts[i] += 1
-                        if attempts[i] >= _MAX_ATTEMPTS:
-                            on_row(_lost_row(spec, i, f"worker process died {attempts[i]} times while this run "
-                                                      "was in flight"))
-                        else:
-                            pending.appendleft(i)
+                        for i in reversed(chunk):
+                            attempts[i] += 1
+                            if attempts[i] >= _MAX_ATTEMPTS:
+                                on_row(_lost_row(spec, i, f"worker process died {attempts[i]} times while this "
+                                                          "run was in flight"))
+                            else:
+                                pending.appendleft(i)
                     pool.shutdown(wait=True, cancel_futures=True)
 
 
@@ -119,9 +138,10 @@ class RayEngine:
 
     name = "ray"
 
-    def __init__(self, workers: int | None = None, address: str | None = None) -> None:
+    def __init__(self, workers: int | None = None, address: str | None = None, batch: int = DEFAULT_BATCH) -> None:
         self.workers = workers
         self.address = address
+        self.batch = int(batch)
         self._cpus = 0
 
     def _connect(self) -> Any:
@@ -149,22 +169,25 @@ class RayEngine:
 
     def run(self, spec: CampaignSpec, indices: Iterable[int], on_row: OnRow, on_tick: OnTick | None = None) -> None:
         ray = self._connect()
-        task = ray.remote(num_cpus=1, max_retries=_MAX_ATTEMPTS - 1)(run_task)
+        task = ray.remote(num_cpus=1, max_retries=_MAX_ATTEMPTS - 1)(run_tasks)
         spec_ref = ray.put(spec)
         window = int(self.workers) if self.workers else 2 * max(1, self._cpus)
         pending = collections.deque(indices)
-        inflight: dict[Any, int] = {}
+        inflight: dict[Any, list[int]] = {}
         while pending or inflight:
             while pending and len(inflight) < window:
-                i = pending.popleft()
-                inflight[task.remote(spec_ref, i)] = i
+                chunk = _take(pending, chunk_size(spec, len(pending), max(1, self._cpus), self.batch))
+                inflight[task.remote(spec_ref, chunk)] = chunk
             done, _ = ray.wait(list(inflight), num_returns=1, timeout=0.5)
             for ref in done:
-                i = inflight.pop(ref)
+                chunk = inflight.pop(ref)
                 try:
-                    on_row(ray.get(ref))
+                    rows = ray.get(ref)
                 except Exception as e:  # noqa: BLE001 -- worker died through the retries, object lost, ...
-                    on_row(_lost_row(spec, i, " ".join(f"ray: {type(e).__name__}: {e}".split())[:2000]))
+                    rows = [_lost_row(spec, i, " ".join(f"ray: {type(e).__name__}: {e}".split())[:2000])
+                            for i in chunk]
+                for row in rows:
+                    on_row(row)
             if on_tick:
                 on_tick()
 
@@ -178,9 +201,10 @@ class RayEngine:
             pass
 
 
-def make_engine(name: str, workers: int | None = None, address: str | None = None) -> Any:
+def make_engine(name: str, workers: int | None = None, address: str | None = None,
+                batch: int = DEFAULT_BATCH) -> Any:
     if name == "local":
-        return LocalEngine(workers)
+        return LocalEngine(workers, batch)
     if name == "ray":
-        return RayEngine(workers, address)
+        return RayEngine(workers, address, batch)
     raise ValueError(f"unknown engine {name!r}; choose from {', '.join(ENGINES)}")

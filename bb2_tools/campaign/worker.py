@@ -9,13 +9,14 @@ from __future__ import annotations
 import math
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 from bb2_tools.campaign.errors import SpecError
 from bb2_tools.campaign.figures import END_STATUS, maneuver_values, mission_values
 from bb2_tools.campaign.spec import CampaignSpec, column_value
 
-__all__ = ["STATUSES", "run_task", "run_one", "probe", "build_mission", "maneuver_settings_of"]
+__all__ = ["STATUSES", "run_task", "run_tasks", "run_one", "probe", "build_mission", "maneuver_settings_of",
+           "BATCH_MIN", "batched"]
 
 STATUSES = ("ok", "grounded", "broached", "diverged", "error")
 _MAX_MESSAGE = 2000
@@ -47,10 +48,7 @@ def run_one(spec: CampaignSpec, index: int, *, on_row: Callable[[Any], None] | N
     ``on_row`` gets every trajectory row as it is made (for ``--only INDEX --out-run DIR``).
     """
     t0 = time.perf_counter()
-    row: dict[str, Any] = {"index": int(index), "seed": spec.run_seed(index)}
-    kinds = {v.key: v.column_kind for v in spec.vary}
-    for k, val in spec.inputs(index).items():
-        row[k] = column_value(val, kinds[k])
+    row = _row_inputs(spec, index)
     figures: dict[str, Any] = {n: None for n in spec.collect}
     status, message, result = "error", "", None
     try:
@@ -65,11 +63,25 @@ def run_one(spec: CampaignSpec, index: int, *, on_row: Callable[[Any], None] | N
             status, message, figures, result = _fly_maneuver(spec, doc, on_row)
     except Exception as e:  # noqa: BLE001 -- a run that raises is recorded, the campaign goes on
         status, message = "error", _one_line(f"{type(e).__name__}: {e}")
+    return _row_outcome(row, figures, status, message, time.perf_counter() - t0), result
+
+
+def _row_inputs(spec: CampaignSpec, index: int) -> dict[str, Any]:
+    """The first columns of run ``index``'s row: index, seed, every varied input."""
+    row: dict[str, Any] = {"index": int(index), "seed": spec.run_seed(index)}
+    kinds = {v.key: v.column_kind for v in spec.vary}
+    for k, val in spec.inputs(index).items():
+        row[k] = column_value(val, kinds[k])
+    return row
+
+
+def _row_outcome(row: dict[str, Any], figures: dict[str, Any], status: str, message: str,
+                 wall_s: float) -> dict[str, Any]:
     row.update(figures)
     row["status"] = status
     row["message"] = message
-    row["wall_time_s"] = time.perf_counter() - t0
-    return row, result
+    row["wall_time_s"] = wall_s
+    return row
 
 
 def _fly_mission(spec: CampaignSpec, doc: dict[str, Any], on_row: Callable[[Any], None] | None):
@@ -84,13 +96,19 @@ def _fly_mission(spec: CampaignSpec, doc: dict[str, Any], on_row: Callable[[Any]
 
 
 def _fly_maneuver(spec: CampaignSpec, doc: dict[str, Any], on_row: Callable[[Any], None] | None):
-    from dataclasses import asdict
-
     from bb2_sim.maneuvers import run_maneuver
-    from bb2_sim.metrics import figures_for
 
     s = maneuver_settings_of(spec, doc)
     res = run_maneuver(s, on_row=on_row)
+    return (*_maneuver_outcome(spec, s, res), res)
+
+
+def _maneuver_outcome(spec: CampaignSpec, s: Any, res: Any) -> tuple[str, str, dict[str, Any]]:
+    """Status, message and collected figures of a flown maneuver (alone or in a batch)."""
+    from dataclasses import asdict
+
+    from bb2_sim.metrics import figures_for
+
     status = "ok" if res.error is None else "diverged"
     message = "" if res.error is None else _one_line(str(res.error))
     try:
@@ -100,7 +118,7 @@ def _fly_maneuver(spec: CampaignSpec, doc: dict[str, Any], on_row: Callable[[Any
         if status == "ok":
             status = "error"
         message = _one_line((message + "; " if message else "") + f"figures: {type(e).__name__}: {e}")
-    return status, message, maneuver_values(str(spec.maneuver), fig, spec.collect), res
+    return status, message, maneuver_values(str(spec.maneuver), fig, spec.collect)
 
 
 _CACHES: dict[Any, Any] | None = None
@@ -154,6 +172,58 @@ def run_task(spec: CampaignSpec, index: int) -> dict[str, Any]:
         row = {"index": int(index), "seed": spec.run_seed(index), "status": "error",
                "message": _one_line(f"{type(e).__name__}: {e}"), "wall_time_s": math.nan}
         return row
+
+
+BATCH_MIN = 16
+"""Fewest maneuvers flown together: below about 20 boats the batch ROM costs more per boat than single runs."""
+
+
+def batched(spec: CampaignSpec) -> bool:
+    """Whether the runs of ``spec`` may fly together in a batch (:func:`run_tasks`): maneuvers on the library
+    runner (not ``--graph``)."""
+    return spec.target == "maneuver" and not spec.graph_dir
+
+
+def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]]:
+    """The results rows of runs ``indices`` (what the engines call for a chunk of runs; never raises).
+
+    Maneuvers that can fly together -- one physics profile, the same duration, the authors' sea states (no
+    ``environment``), at least :data:`BATCH_MIN` of them -- fly as one batch of the batch ROM
+    (:func:`bb2_sim.batch.maneuvers.run_maneuvers_batch`, exact mode): bit for bit the trajectory each gives alone,
+    so the same figures, whatever the chunking, the engine or the number of workers.  A run that diverged in the
+    batch is flown again alone (its message is then the single run's), and so is every other run.  Each row's
+    wall time is its share of its batch's."""
+    install_worker_caches()
+    rows: dict[int, dict[str, Any]] = {}
+    groups: dict[Any, list[tuple[int, Any]]] = {}
+    if batched(spec) and len(indices) >= BATCH_MIN:
+        for i in indices:
+            try:
+                s = maneuver_settings_of(spec, spec.document(i))
+            except Exception:  # noqa: BLE001 -- run alone below: its row then says why
+                continue
+            if s.environment is None:
+                groups.setdefault((s.profile, s.duration), []).append((int(i), s))
+    for group in groups.values():
+        if len(group) < BATCH_MIN:
+            continue
+        try:
+            from bb2_sim.batch.maneuvers import run_maneuvers_batch
+
+            results = run_maneuvers_batch([s for _, s in group])
+        except Exception:  # noqa: BLE001 -- the batch refused or failed: every run alone below
+            continue
+        for (i, s), res in zip(group, results):
+            if res.error is not None:
+                continue                     # alone below: the single run's own message
+            t1 = time.perf_counter()
+            try:
+                status, message, figures = _maneuver_outcome(spec, s, res)
+            except Exception:  # noqa: BLE001
+                continue
+            rows[i] = _row_outcome(_row_inputs(spec, i), figures, status, message,
+                                   res.wall_time_s + time.perf_counter() - t1)
+    return [rows[int(i)] if int(i) in rows else run_task(spec, i) for i in indices]
 
 
 # ------------------------------------------------------------------------------------------ probing
