@@ -176,6 +176,9 @@ def run_task(spec: CampaignSpec, index: int) -> dict[str, Any]:
 
 BATCH_MIN = 16
 """Fewest maneuvers flown together: below about 20 boats the batch ROM costs more per boat than single runs."""
+BATCH_MEMORY_BYTES = 512e6
+"""At most this much of trajectories held by one batch (its boats' logged rows): longer maneuvers fly in smaller
+batches, or alone."""
 
 
 def batched(spec: CampaignSpec) -> bool:
@@ -204,16 +207,23 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
                 continue
             if s.environment is None:
                 groups.setdefault((s.profile, s.duration), []).append((int(i), s))
-    for group in groups.values():
-        if len(group) < BATCH_MIN:
+    from bb2_sim.maneuvers import OUTPUT_COLUMNS
+
+    batches = []
+    for (_profile, duration), group in groups.items():
+        most = int(BATCH_MEMORY_BYTES // ((duration / 0.1 + 1) * len(OUTPUT_COLUMNS) * 8))
+        size = max(BATCH_MIN, math.ceil(len(group) / max(1, math.ceil(len(group) / max(1, most)))))
+        batches += [group[k:k + size] for k in range(0, len(group), size)] if most >= BATCH_MIN else []
+    for batch in batches:
+        if len(batch) < BATCH_MIN:
             continue
         try:
             from bb2_sim.batch.maneuvers import run_maneuvers_batch
 
-            results = run_maneuvers_batch([s for _, s in group])
+            results = run_maneuvers_batch([s for _, s in batch])
         except Exception:  # noqa: BLE001 -- the batch refused or failed: every run alone below
             continue
-        for (i, s), res in zip(group, results):
+        for (i, s), res in zip(batch, results):
             if res.error is not None:
                 continue                     # alone below: the single run's own message
             t1 = time.perf_counter()
