@@ -7,7 +7,10 @@
   worker loses no run;
 * a broken run is recorded as ``error`` with its message, and the campaign goes on;
 * a malformed SPEC exits 2 with one line naming the field;
-* a run flown alone (``--only INDEX --out-run DIR``) and the library runner give the campaign's row.
+* a run flown alone (``--only INDEX --out-run DIR``) and the library runner give the campaign's row;
+* a maneuver campaign, whose runs each worker flies together in the batch ROM, gives the table it gives one run at
+  a time (``--batch 1``, the single-run path of ``--only`` and ``run_maneuver``) and on Ray, to the last digit;
+  a run that diverges in a batch is flown again alone for its own message.
 """
 from __future__ import annotations
 
@@ -408,3 +411,69 @@ def test_graph_runs_fly_the_ros_graph_and_equal_the_library_runner(tmp_path):
         run = tmp_path / "g" / "graph" / f"{r['index']:06d}"
         assert list((run / "bag").glob("*.mcap")) and (run / "analysis" / "figures.json").exists()
     assert yaml.safe_load((tmp_path / "g" / "campaign.yaml").read_text())["campaign"]["graph"] is True
+
+
+# ------------------------------------------------------------------------------------------ maneuver batches
+# 32 turning circles of 15 s (two workers: two batches of 16); speed 0 diverges at the first step (quirk Q13)
+MANEUVER_SPEC = {
+    "maneuver": {"name": "turning-circle", "options": {"duration": 15}},
+    "seed": 11,
+    "samples": 32,
+    "vary": {"rudder_deg": {"uniform": [15.0, 35.0]}, "sea_state": {"choice": [0, 3, 5]},
+             "speed_mps": {"choice": [0.0, 4.0, 5.0, 5.5, 6.0]}},
+    "collect": ["peak_roll_rad", "z_change_m", "initial_speed_m_s", "time_90_s"],
+}
+
+
+@pytest.fixture(scope="module")
+def maneuver_batched(tmp_path_factory) -> tuple[Path, Path]:
+    """The maneuver campaign flown by the local pool of 2 workers, each flying its 16 runs as one batch."""
+    tmp = tmp_path_factory.mktemp("maneuvers")
+    spec = _write_spec(tmp / "circles.yaml", MANEUVER_SPEC)
+    r = _campaign(str(spec), "--out", str(tmp / "batched"), "--workers", "2", timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    return spec, tmp / "batched"
+
+
+def test_maneuver_batches_give_the_table_of_runs_flown_one_by_one(maneuver_batched, tmp_path):
+    spec, batched = maneuver_batched
+    r = _campaign(str(spec), "--out", str(tmp_path / "alone"), "--workers", "2", "--batch", "1", timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    alone = _comparable(_table(tmp_path / "alone"))
+    assert len(alone) == 32 and _comparable(_table(batched)) == alone
+    status = [r["status"] for r in alone]
+    assert status.count("ok") >= 16 and "diverged" in status, status
+    assert {r["sea_state"] for r in alone} == {0, 3, 5}
+
+
+def test_ray_flies_maneuver_batches_as_the_local_pool(maneuver_batched, ray_cluster, tmp_path):
+    spec, batched = maneuver_batched
+    r = _campaign(str(spec), "--out", str(tmp_path / "ray"), "--engine", "ray", "--address", ray_cluster,
+                  timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert _comparable(_table(tmp_path / "ray")) == _comparable(_table(batched))
+
+
+def test_a_chunk_of_maneuvers_flies_as_one_batch_and_only_the_diverged_runs_alone(monkeypatch):
+    """``run_tasks``: the runs of a chunk fly together; ``run_task`` (the single run) is called only for those that
+    diverged in the batch, whose rows then carry the single run's own message."""
+    from bb2_tools.campaign import worker
+
+    spec = parse_spec(MANEUVER_SPEC)
+    alone: list[int] = []
+    single = worker.run_task
+
+    def spy(s, i):
+        alone.append(int(i))
+        return single(s, i)
+
+    monkeypatch.setattr(worker, "run_task", spy)
+    rows = worker.run_tasks(spec, list(range(worker.BATCH_MIN)))
+    assert [r["index"] for r in rows] == list(range(worker.BATCH_MIN))
+    diverged = [r["index"] for r in rows if r["status"] == "diverged"]
+    assert diverged and alone == diverged, (alone, diverged)
+    assert all("non-finite model evaluation" in r["message"] for r in rows if r["status"] == "diverged")
+    # fewer runs than a batch pays for: every one alone
+    alone.clear()
+    worker.run_tasks(spec, [0, 1, 2])
+    assert alone == [0, 1, 2]
