@@ -11,7 +11,8 @@ included), and "1000 runs" is the projection 1000 / (runs/s).  Goals: 1,000 cany
 Ray's own multi-node test cluster (``ray.cluster_utils.Cluster``: K raylets of 1 CPU each on this machine,
 reported as such).  The baseline is today's way: one ``bb2-sim mission`` process per run, two at a time.
 
-``--maneuvers N``: a campaign of N turning circles (60 s; rudder, sea state 0/3/5 and speed drawn) flown by the
+``--maneuvers N``: a campaign of N turning circles (60 s; rudder, sea state (``--maneuver-sea-states``, default
+0/3/5) and speed drawn) flown by the
 local pool with 2 workers, each worker flying its runs together in the batch ROM (``--batch 64``, the default) and
 one by one (``--batch 1``): maneuver runs per second, the ratio, and whether the two tables are equal.
 """
@@ -129,14 +130,15 @@ def store_memory(rows: int) -> str:
             f"+{(after - before) / 1024:.0f} MB, results.parquet {size / 1e6:.1f} MB")
 
 
-def maneuver_batches(n: int) -> None:
+def maneuver_batches(n: int, sea_states: list[float]) -> None:
     spec = parse_spec({"name": "batch_speed", "maneuver": {"name": "turning-circle", "options": {"duration": 60}},
                        "seed": 2, "samples": n,
-                       "vary": {"rudder_deg": {"uniform": [15.0, 35.0]}, "sea_state": {"choice": [0, 3, 5]},
+                       "vary": {"rudder_deg": {"uniform": [15.0, 35.0]}, "sea_state": {"choice": sea_states},
                                 "speed_mps": {"uniform": [3.0, 6.0]}},
                        "collect": ["tactical_diameter_m", "peak_roll_rad", "z_change_m"]})
     probe(spec)
-    print(f"maneuver campaign: {n} turning circles of 60 s (sea states 0/3/5), local pool of 2 workers")
+    print(f"maneuver campaign: {n} turning circles of 60 s (sea states {'/'.join(f'{x:g}' for x in sea_states)}), "
+          "local pool of 2 workers")
     w1, r1 = timed(LocalEngine(2, batch=1), spec, n)
     print(line("one by one (--batch 1)", n, w1))
     w64, r64 = timed(LocalEngine(2, batch=64), spec, n)
@@ -154,10 +156,11 @@ def main(argv=None) -> int:
     ap.add_argument("--store-rows", type=int, default=100_000)
     ap.add_argument("--maneuvers", type=int, default=256, help="turning circles of the batch comparison (0: skip)")
     ap.add_argument("--only-maneuvers", action="store_true", help="only the maneuver batch comparison")
+    ap.add_argument("--maneuver-sea-states", default="0,3,5", help="sea states drawn for the turning circles")
     a = ap.parse_args(argv)
     os.environ.setdefault("MPLBACKEND", "Agg")
     if a.only_maneuvers:
-        maneuver_batches(a.maneuvers)
+        maneuver_batches(a.maneuvers, [float(x) for x in a.maneuver_sea_states.split(',')])
         return 0
     spec = make_spec(a.mission, a.runs, a.duration)
     n = min(a.runs, spec.n_runs)
@@ -194,7 +197,7 @@ def main(argv=None) -> int:
     if a.store_rows:
         print(store_memory(a.store_rows))
     if a.maneuvers:
-        maneuver_batches(a.maneuvers)
+        maneuver_batches(a.maneuvers, [float(x) for x in a.maneuver_sea_states.split(',')])
     return 0
 
 
