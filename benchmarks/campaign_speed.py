@@ -13,8 +13,9 @@ reported as such).  The baseline is today's way: one ``bb2-sim mission`` process
 
 ``--maneuvers N``: a campaign of N turning circles (60 s; rudder, sea state (``--maneuver-sea-states``, default
 0/3/5) and speed drawn) flown by the
-local pool with 2 workers, each worker flying its runs together in the batch ROM (``--batch 64``, the default) and
-one by one (``--batch 1``): maneuver runs per second, the ratio, and whether the two tables are equal.
+local pool with 2 workers, each worker flying its runs together in the batch ROM (``--maneuver-batches``: the
+``--batch`` values, default 128, the default of bb2-campaign) and one by one (``--batch 1``): maneuver runs per
+second, the ratio, and whether the tables are equal.
 """
 from __future__ import annotations
 
@@ -130,7 +131,7 @@ def store_memory(rows: int) -> str:
             f"+{(after - before) / 1024:.0f} MB, results.parquet {size / 1e6:.1f} MB")
 
 
-def maneuver_batches(n: int, sea_states: list[float]) -> None:
+def maneuver_batches(n: int, sea_states: list[float], batches: list[int]) -> None:
     spec = parse_spec({"name": "batch_speed", "maneuver": {"name": "turning-circle", "options": {"duration": 60}},
                        "seed": 2, "samples": n,
                        "vary": {"rudder_deg": {"uniform": [15.0, 35.0]}, "sea_state": {"choice": sea_states},
@@ -141,9 +142,10 @@ def maneuver_batches(n: int, sea_states: list[float]) -> None:
           "local pool of 2 workers")
     w1, r1 = timed(LocalEngine(2, batch=1), spec, n)
     print(line("one by one (--batch 1)", n, w1))
-    w64, r64 = timed(LocalEngine(2, batch=64), spec, n)
-    print(line("together in the batch ROM (--batch 64)", n, w64, n / w1))
-    print(f"  batch / one-by-one throughput: {w1 / w64:.2f}; tables equal to the last digit: {key(r1) == key(r64)}")
+    for b in batches:
+        wb, rb = timed(LocalEngine(2, batch=b), spec, n)
+        print(line(f"together in the batch ROM (--batch {b})", n, wb, n / w1))
+        print(f"  batch / one-by-one throughput: {w1 / wb:.2f}; tables equal to the last digit: {key(r1) == key(rb)}")
 
 
 def main(argv=None) -> int:
@@ -157,10 +159,12 @@ def main(argv=None) -> int:
     ap.add_argument("--maneuvers", type=int, default=256, help="turning circles of the batch comparison (0: skip)")
     ap.add_argument("--only-maneuvers", action="store_true", help="only the maneuver batch comparison")
     ap.add_argument("--maneuver-sea-states", default="0,3,5", help="sea states drawn for the turning circles")
+    ap.add_argument("--maneuver-batches", default="128", help="--batch values compared with one by one")
     a = ap.parse_args(argv)
     os.environ.setdefault("MPLBACKEND", "Agg")
     if a.only_maneuvers:
-        maneuver_batches(a.maneuvers, [float(x) for x in a.maneuver_sea_states.split(',')])
+        maneuver_batches(a.maneuvers, [float(x) for x in a.maneuver_sea_states.split(',')],
+                         [int(x) for x in a.maneuver_batches.split(',')])
         return 0
     spec = make_spec(a.mission, a.runs, a.duration)
     n = min(a.runs, spec.n_runs)
@@ -197,7 +201,8 @@ def main(argv=None) -> int:
     if a.store_rows:
         print(store_memory(a.store_rows))
     if a.maneuvers:
-        maneuver_batches(a.maneuvers, [float(x) for x in a.maneuver_sea_states.split(',')])
+        maneuver_batches(a.maneuvers, [float(x) for x in a.maneuver_sea_states.split(',')],
+                         [int(x) for x in a.maneuver_batches.split(',')])
     return 0
 
 

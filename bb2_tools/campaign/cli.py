@@ -59,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="local: worker processes (default: CPUs); ray: runs in flight (default: 2 x CPUs)")
     p.add_argument("--batch", type=_positive_int, metavar="N", default=None,
                    help="maneuver campaigns: the most runs one worker flies together in the batch ROM, bit for bit "
-                        "what each gives alone (default 64; 1: every run alone)")
+                        "what each gives alone (default 128; 1: every run alone)")
     p.add_argument("--resume", action="store_true", help="finish exactly the runs missing from DIR")
     p.add_argument("--only", type=_index, metavar="INDEX", help="fly run INDEX alone (needs --out-run)")
     p.add_argument("--out-run", metavar="DIR", help="--only: where that run's CSV, figures and row go")

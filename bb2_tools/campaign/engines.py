@@ -23,7 +23,7 @@ from bb2_tools.campaign.worker import BATCH_MIN, batched, run_tasks
 __all__ = ["LocalEngine", "RayEngine", "make_engine", "chunk_size", "ENGINES", "DEFAULT_BATCH"]
 
 ENGINES = ("local", "ray")
-DEFAULT_BATCH = 64
+DEFAULT_BATCH = 128
 """Most maneuver runs one worker flies together (``bb2-campaign --batch``)."""
 _MAX_ATTEMPTS = 3
 _PRELOAD = ["bb2_tools.campaign.worker", "bb2_mission.runner", "bb2_mission.schema", "bb2_sim.maneuvers",
