@@ -26,11 +26,12 @@ Per spacing, a block's grid is evaluated in one of two forms, whichever costs le
 * node by node (the small control-plane blocks): Re sum_i c_i exp(kappa_i . d_n) at every used node.
 
 The exponents of all grid lines and nodes of a spacing are one matrix product of per-component, per-block
-parameters with a fixed coefficient matrix. The cosines and sines are evaluated in single precision
-(numpy's vectorised float32 kernels, about 15 times faster than float64 here) after the phases are reduced
-to [-pi, pi] in double precision: an error of about 1e-7 of a component's pressure, far below the
-interpolation error. The hydrostatic part stays exact (pressure integrator moments); this is only the
-dynamic part.
+parameters with a fixed coefficient matrix. The cosines, sines and the exponentials of the decay are
+evaluated in single precision (numpy's vectorised float32 kernels: cos/sin about 15 times, exp about 4 times
+faster than float64 here) after the phases are reduced to [-pi, pi] in double precision: an error of about
+1e-7 of a component's pressure, far below the interpolation error (the exponents are capped at 80, below
+float32's overflow at 88, as no point of a hull reaches k z = 80). The hydrostatic part stays exact (pressure
+integrator moments); this is only the dynamic part.
 """
 from __future__ import annotations
 
@@ -39,6 +40,8 @@ import numpy as np
 from .components import WaveComponents
 
 TWO_PI = 2.0 * np.pi
+EXP_CAP = 80.0
+"""Largest exponent evaluated (float32's exp overflows at 88.7)."""
 
 
 def _lagrange_weights(u: np.ndarray, order: int) -> np.ndarray:
@@ -142,6 +145,7 @@ class _SpacingLevel:
             m = self.n_cols
             self._EI, self._ER, self._R = np.empty((ni, m)), np.empty((ni, m)), np.empty((ni, m))
             self._T32 = np.empty((ni, m), dtype=np.float32)
+            self._E32 = np.empty((ni, m), dtype=np.float32)
             self._X = np.empty((2 * ni, m))
             self._buf_n = ni
         return self._EI, self._ER, self._R, self._T32, self._X
@@ -150,17 +154,19 @@ class _SpacingLevel:
         """out (B, 6) += the sums of this level's components (P_* (I, 4 B) rows of kappa and offsets)."""
         ni = len(P_re)
         EI, ER, R, T32, X = self._buffers(ni)
+        E32 = self._E32
         np.matmul(P_im, self.C_im, out=EI)                                   # (I, M) phases
         np.multiply(EI, 1.0 / TWO_PI, out=R)
         np.rint(R, out=R)
         R *= TWO_PI
         EI -= R                                                              # in [-pi, pi]
         np.matmul(P_re, self.C_re, out=ER)
-        np.exp(ER, out=ER)
+        np.minimum(ER, EXP_CAP, out=ER)
+        np.exp(ER, out=E32, dtype=np.float32)
         np.cos(EI, out=T32, dtype=np.float32)
-        np.multiply(ER, T32, out=X[:ni])
+        np.multiply(E32, T32, out=X[:ni])
         np.sin(EI, out=T32, dtype=np.float32)
-        np.multiply(ER, T32, out=X[ni:])
+        np.multiply(E32, T32, out=X[ni:])
         for b, xs, ys, QT in self.big:
             node = X[:, xs].T @ X[:, ys]                                     # (n1, n23) = Re(X1^T Y)
             out[b] += QT @ node.ravel()

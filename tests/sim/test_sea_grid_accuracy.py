@@ -50,3 +50,14 @@ def test_grid_wave_loads_within_half_a_percent_of_direct_integration_over_a_run(
     model = BB2Model(profile=s.profile, sea=sea)
     err = _errors(model, _fly(model, s, every=10))          # every 0.5 s
     assert np.all(err < 0.005), err
+
+
+def test_grid_wave_loads_stay_finite_where_k_z_passes_float32s_exp_range():
+    """The grid evaluates exp(k z) in float32 (overflow at k z = 88.7): a hull lifted 40 m out of a short sea
+    (k z up to ~150 at its top) still gets finite loads, capped rather than inf * 0 = NaN."""
+    sea = ComponentSea(discretise(JonswapSpectrum(1.0, 3.0), 16, seed=3))   # k up to ~3.7 rad/m
+    model = BB2Model(sea=sea)
+    assert sea.components.wavenumber.max() * 40.0 > 88.7
+    loads = model.hydro.loads(np.array([0.0, 0.0, 40.0]), rotation_native(0.0, 0.0, 0.0), 1.0, None, np.zeros(5),
+                              sea=sea, wave_load_method="grid")
+    assert np.all(np.isfinite(loads)), loads
