@@ -421,14 +421,16 @@ def load_mission(file: str | Path) -> Mission:
         f = MISSIONS_DIR / f"{f}.yaml"
     doc = _read_yaml(f)
     seen = {f.resolve()}
+    holder = f                  # the file whose extends is being resolved (relative to its own folder)
     while "extends" in doc:
         base = doc.pop("extends")
-        bf = _resolve_file(str(base), f.parent) if isinstance(base, str) else None
+        bf = _resolve_file(str(base), holder.parent) if isinstance(base, str) else None
         if bf is None:
-            raise MissionError(f"{f}: extends: mission file {base!r} not found")
+            raise MissionError(f"{holder}: extends: mission file {base!r} not found")
         if bf.resolve() in seen:
             raise MissionError(f"{f}: extends: cycle through {bf}")
         seen.add(bf.resolve())
-        doc = _merge(_read_yaml(bf), doc)
+        doc = _merge(_read_yaml(bf), doc)          # the base's own extends comes with it
+        holder = bf
     return mission_from_dict(doc, base_dir=f.parent, name=f.stem, source_file=f)
 
