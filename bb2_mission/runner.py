@@ -40,7 +40,7 @@ from bb2_mission.records import MissionRow, rows_to_columns
 from bb2_mission.schema import Mission, load_mission
 from bb2_mission.summary import EndReason, MissionEvent, MissionSummary, limit_event, navigation_errors, summarize
 
-__all__ = ["MissionStep", "MissionResult", "MissionRunner", "run_mission"]
+__all__ = ["MissionStep", "Tick", "MissionResult", "MissionRunner", "run_mission"]
 
 RAD2DEG = 180.0 / math.pi
 NAN5 = (math.nan,) * 5
@@ -59,6 +59,24 @@ class MissionStep:
     row: MissionRow | None
     event: MissionEvent | None = None
 
+
+
+@dataclass
+class Tick:
+    """A tick between :meth:`MissionRunner.begin_tick` and :meth:`MissionRunner.finish_tick`: the state at t_n,
+    the estimate flown on, the stack's output, the clearances, the commands as the ROM takes them (clamped) and
+    the event that ends the run before the ROM step (a limit; or, set by the stepper, the divergence)."""
+
+    state: Any
+    x: np.ndarray
+    flown: Any
+    output: Any
+    terrain_z_m: float
+    clearance_m: float
+    hull_clearance_m: float
+    planes_deg: np.ndarray
+    rps: float
+    event: MissionEvent | None = None
 
 
 @dataclass
@@ -112,8 +130,26 @@ class MissionRunner:
 
     def step(self) -> MissionStep:
         """One tick at t_n: stack output from the state, terrain checks, then the ROM step to t_n+1."""
-        from bb2_control.errors import NonFiniteInputError, PathFollowingError
         from bb2_sim.integrator import NonFiniteStateError
+
+        tick = self.begin_tick()
+        if isinstance(tick, MissionStep):
+            return tick
+        rec = None
+        if tick.event is None:
+            try:
+                rec = self.sim.step(tick.planes_deg, tick.rps)
+            except NonFiniteStateError as e:
+                tick.event = MissionEvent(EndReason.DIVERGED, tick.state.t, tick.x[0:3].copy(), str(e))
+        return self.finish_tick(tick, rec)
+
+    def begin_tick(self) -> "Tick | MissionStep":
+        """The tick's half before the ROM step: the state at t_n, the clearances, the stack's output and the
+        limits.  Returns the :class:`Tick` (its commands clamped for the ROM, its ``event`` if a limit ends the
+        run before the step), or the ended :class:`MissionStep` of a control error.  :meth:`step` is
+        ``begin_tick``, the ROM step (unless ``event``), :meth:`finish_tick`; a batch of runners shares the
+        middle (:mod:`bb2_mission.batch`)."""
+        from bb2_control.errors import NonFiniteInputError, PathFollowingError
         from bb2_sim.state import VehicleState
 
         if self.done:
@@ -132,23 +168,24 @@ class MissionRunner:
             return MissionStep(state, None, None, tz, cl, hull, row, self.event)
         self._last_out = out
         event = limit_event(self.mission.limits, self.c.max_cg_z_m, sim.t, x, hull, cl)
-        rec = None
-        if event is None:
-            try:
-                rec = sim.step(clamp_planes_deg(out.planes_deg, self._plane_limit_deg),
-                               clamp_rps(out.rps, self._rps_limits))
-            except NonFiniteStateError as e:
-                event = MissionEvent(EndReason.DIVERGED, sim.t, x[0:3].copy(), str(e))
+        return Tick(state, x, flown, out, tz, cl, hull, clamp_planes_deg(out.planes_deg, self._plane_limit_deg),
+                    clamp_rps(out.rps, self._rps_limits), event)
+
+    def finish_tick(self, tick: "Tick", rec: Any) -> MissionStep:
+        """The tick's half after the ROM step (``rec`` its step record, None if it did not step): the sensors, the
+        row, the end of the run."""
+        state, x, out = tick.state, tick.x, tick.output
         if rec is not None and self.nav is not None:
             self._sense(state, x, rec)
-        row = self._row(state, x, out, rec, tz, cl, hull, flown)
+        row = self._row(state, x, out, rec, tick.terrain_z_m, tick.clearance_m, tick.hull_clearance_m, tick.flown)
+        event = tick.event
         if event is not None:
             self._end(event.kind, event)
         elif out.finished:
             self._end(EndReason.FINISHED, None)
-        elif sim.n >= self.n_steps:
+        elif self.sim.n >= self.n_steps:
             self._end(EndReason.DURATION, None)
-        return MissionStep(state, out, rec, tz, cl, hull, row, event)
+        return MissionStep(state, out, rec, tick.terrain_z_m, tick.clearance_m, tick.hull_clearance_m, row, event)
 
     def _end(self, reason: EndReason, event: MissionEvent | None) -> None:
         self.done, self.end_reason, self.event = True, reason, event

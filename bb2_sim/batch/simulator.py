@@ -8,7 +8,8 @@ previous major sample, then stores (t_n, u_n); k2, k3 at t_n + h/2 and t_n + 3h/
 A boat whose stage or new state is not finite diverges: it is marked (:attr:`BatchSimulator.diverged`, the reason
 in :attr:`BatchSimulator.errors` as the :class:`bb2_sim.integrator.NonFiniteStateError` its single run raises),
 frozen at its last state (t_n, as the single simulator stays), and no longer evaluated; the other boats go on
-unchanged (a step with every boat diverged raises RuntimeError).
+unchanged (a step with every boat diverged raises RuntimeError).  A boat whose run has ended is retired
+(:meth:`BatchSimulator.retire`): frozen the same way, without an error.
 """
 from __future__ import annotations
 
@@ -55,6 +56,7 @@ class BatchSimulator:
         self.actuators = BatchActuators(model.params, self.n_boats, self.h)
         self.dmem = model.new_memory()
         self.diverged = np.zeros(self.n_boats, dtype=bool)
+        self.retired = np.zeros(self.n_boats, dtype=bool)
         self.errors: dict[int, NonFiniteStateError] = {}
         self._rotations = None     # hinge rotations of the last step's deflections (reused per unchanged boat)
 
@@ -68,8 +70,13 @@ class BatchSimulator:
 
     @property
     def active(self) -> np.ndarray:
-        """Indices of the boats still integrating."""
-        return np.flatnonzero(~self.diverged)
+        """Indices of the boats still integrating (neither diverged nor retired)."""
+        return np.flatnonzero(~(self.diverged | self.retired))
+
+    def retire(self, boats) -> None:
+        """Stop integrating ``boats`` (indices): their runs have ended; they stay frozen at their last state and
+        their commands are ignored from the next step on.  The others go on unchanged."""
+        self.retired[np.asarray(boats, dtype=int)] = True
 
     def _commands(self, planes_cmd_deg, rps_cmd, dmass_cmd_kg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         N = self.n_boats
@@ -82,7 +89,7 @@ class BatchSimulator:
             if a.shape not in ((), (N,)):
                 raise ValueError(f"batch: {name} commands must be a scalar or ({N},), got {a.shape}")
             out.append(np.broadcast_to(a, (N,)))
-        live = ~self.diverged
+        live = ~(self.diverged | self.retired)
         bad = live & ~(np.isfinite(planes).all(axis=1) & np.isfinite(out[1]) & np.isfinite(out[2]))
         if bad.any():
             raise ValueError(f"batch: commands must be finite plane angles and rps/ballast (boats "
@@ -91,12 +98,12 @@ class BatchSimulator:
 
     def step(self, planes_cmd_deg, rps_cmd, dmass_cmd_kg=0.0) -> BatchStepRecord:
         """Advance every live boat one major step: plane commands (N, 5) deg, rps (N,) or scalar, ballast (N,)
-        or scalar kg (commands of diverged boats are ignored). Returns the record of t_n."""
+        or scalar kg (commands of diverged or retired boats are ignored). Returns the record of t_n."""
         planes, rps, dmass = self._commands(planes_cmd_deg, rps_cmd, dmass_cmd_kg)
         h, t = self.h, self.t
-        boats = None if not self.diverged.any() else self.active
+        boats = None if not (self.diverged.any() or self.retired.any()) else self.active
         if boats is not None and len(boats) == 0:
-            raise RuntimeError(f"batch: every boat has diverged (at t = {t:.2f} s); nothing to step")
+            raise RuntimeError(f"batch: every boat has diverged or retired (at t = {t:.2f} s); nothing to step")
         x = self.x if boats is None else self.x[boats]
         if boats is None:
             act = self.actuators.step(planes, rps, dmass)
