@@ -48,11 +48,13 @@ def _local_task(indices: list[int]) -> list[dict[str, Any]]:
 
 
 def chunk_size(spec: CampaignSpec, remaining: int, workers: int, batch: int = DEFAULT_BATCH) -> int:
-    """Runs per task: 1, or for a maneuver campaign the remaining runs shared among the workers, at most
-    ``batch`` (below :data:`~bb2_tools.campaign.worker.BATCH_MIN` the batch ROM does not pay: 1)."""
+    """Runs per task: 1, or for a maneuver or mission campaign on the library runner the remaining runs shared
+    among the workers, at most ``batch`` (a share below :data:`~bb2_tools.campaign.worker.BATCH_MIN`, where the
+    batch ROM does not pay: 1, so that the runs still go out one by one)."""
     if not batched(spec) or batch < BATCH_MIN:
         return 1
-    return max(1, min(int(batch), math.ceil(remaining / max(1, workers))))
+    share = min(int(batch), math.ceil(remaining / max(1, workers)))
+    return share if share >= BATCH_MIN else 1
 
 
 def _take(pending: collections.deque, n: int) -> list[int]:

@@ -88,11 +88,15 @@ def _fly_mission(spec: CampaignSpec, doc: dict[str, Any], on_row: Callable[[Any]
     from bb2_mission.runner import MissionRunner
 
     res = MissionRunner(build_mission(spec, doc)).run(on_row=on_row)
+    return (*_mission_outcome(spec, res), res)
+
+
+def _mission_outcome(spec: CampaignSpec, res: Any) -> tuple[str, str, dict[str, Any]]:
+    """Status, message and collected figures of a flown mission (alone or in a batch)."""
     s = res.summary
-    kind = s.end_reason
-    status = END_STATUS.get(str(kind), "error")
+    status = END_STATUS.get(str(s.end_reason), "error")
     message = _one_line(str(s.event)) if s.event is not None else ""
-    return status, message, mission_values(s, spec.collect), res
+    return status, message, mission_values(s, spec.collect)
 
 
 def _fly_maneuver(spec: CampaignSpec, doc: dict[str, Any], on_row: Callable[[Any], None] | None):
@@ -175,28 +179,45 @@ def run_task(spec: CampaignSpec, index: int) -> dict[str, Any]:
 
 
 BATCH_MIN = 16
-"""Fewest maneuvers flown together: below about 20 boats the batch ROM costs more per boat than single runs."""
+"""Fewest runs flown together: below about 20 boats the batch ROM costs more per boat than single runs."""
 BATCH_MEMORY_BYTES = 512e6
-"""At most this much of trajectories held by one batch (its boats' logged rows): longer maneuvers fly in smaller
+"""At most this much of trajectories held by one batch (its boats' logged rows): longer runs fly in smaller
 batches, or alone."""
 
 
 def batched(spec: CampaignSpec) -> bool:
-    """Whether the runs of ``spec`` may fly together in a batch (:func:`run_tasks`): maneuvers on the library
-    runner (not ``--graph``)."""
-    return spec.target == "maneuver" and not spec.graph_dir
+    """Whether the runs of ``spec`` may fly together in a batch (:func:`run_tasks`): maneuvers and missions on the
+    library runner (not ``--graph``)."""
+    return spec.target in ("maneuver", "mission") and not spec.graph_dir
+
+
+def _batches(groups: dict[Any, list[tuple[int, Any]]], run_bytes) -> list[list[tuple[int, Any]]]:
+    """The groups cut into batches of at least :data:`BATCH_MIN` runs and at most :data:`BATCH_MEMORY_BYTES` of
+    trajectories (``run_bytes(key, group)``: the most one run of the group holds); a group too small for a batch
+    is left out (flown alone)."""
+    batches = []
+    for key, group in groups.items():
+        most = int(BATCH_MEMORY_BYTES // run_bytes(key, group))
+        size = max(BATCH_MIN, math.ceil(len(group) / max(1, math.ceil(len(group) / max(1, most)))))
+        batches += [b for b in (group[k:k + size] for k in range(0, len(group), size)) if len(b) >= BATCH_MIN] \
+            if most >= BATCH_MIN else []
+    return batches
 
 
 def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]]:
     """The results rows of runs ``indices`` (what the engines call for a chunk of runs; never raises).
 
-    Maneuvers that can fly together -- one physics profile, the same duration, the authors' sea states (no
-    ``environment``), at least :data:`BATCH_MIN` of them -- fly as one batch of the batch ROM
-    (:func:`bb2_sim.batch.maneuvers.run_maneuvers_batch`, exact mode): bit for bit the trajectory each gives alone,
-    so the same figures, whatever the chunking, the engine or the number of workers.  A run that diverged in the
-    batch is flown again alone (its message is then the single run's), and so is every other run.  Each row's
+    Runs that can fly together, at least :data:`BATCH_MIN` of them, fly as one batch of the batch ROM in its exact
+    mode (bit for bit what each gives alone, so the same figures whatever the chunking, the engine or the number
+    of workers): maneuvers of one physics profile and one duration in the authors' sea states (no
+    ``environment``), with :func:`bb2_sim.batch.maneuvers.run_maneuvers_batch`; missions of one hull and profile
+    in the authors' sea states, without current, flying on the truth, with
+    :func:`bb2_mission.batch.run_missions_batch` (each mission's stack still steps alone).  A run that diverged in
+    the batch is flown again alone (its message is then the single run's), and so is every other run.  Each row's
     wall time is its share of its batch's."""
     install_worker_caches()
+    if spec.target == "mission":
+        return _run_mission_tasks(spec, indices)
     rows: dict[int, dict[str, Any]] = {}
     groups: dict[Any, list[tuple[int, Any]]] = {}
     if batched(spec) and len(indices) >= BATCH_MIN:
@@ -209,14 +230,7 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
                 groups.setdefault((s.profile, s.duration), []).append((int(i), s))
     from bb2_sim.maneuvers import OUTPUT_COLUMNS
 
-    batches = []
-    for (_profile, duration), group in groups.items():
-        most = int(BATCH_MEMORY_BYTES // ((duration / 0.1 + 1) * len(OUTPUT_COLUMNS) * 8))
-        size = max(BATCH_MIN, math.ceil(len(group) / max(1, math.ceil(len(group) / max(1, most)))))
-        batches += [group[k:k + size] for k in range(0, len(group), size)] if most >= BATCH_MIN else []
-    for batch in batches:
-        if len(batch) < BATCH_MIN:
-            continue
+    for batch in _batches(groups, lambda key, _group: (key[1] / 0.1 + 1) * len(OUTPUT_COLUMNS) * 8):
         try:
             from bb2_sim.batch.maneuvers import run_maneuvers_batch
 
@@ -233,6 +247,45 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
                 continue
             rows[i] = _row_outcome(_row_inputs(spec, i), figures, status, message,
                                    res.wall_time_s + time.perf_counter() - t1)
+    return [rows[int(i)] if int(i) in rows else run_task(spec, i) for i in indices]
+
+
+def _run_mission_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]]:
+    """:func:`run_tasks` for missions."""
+    rows: dict[int, dict[str, Any]] = {}
+    groups: dict[Any, list[tuple[int, Any]]] = {}
+    if batched(spec) and len(indices) >= BATCH_MIN:
+        from bb2_mission.batch import batch_refusal
+
+        for i in indices:
+            try:
+                m = build_mission(spec, spec.document(i))
+            except Exception:  # noqa: BLE001 -- run alone below: its row then says why
+                continue
+            if batch_refusal(m) is None:
+                groups.setdefault((str(m.hull), str(m.profile)), []).append((int(i), m))
+    from bb2_mission.records import MISSION_COLUMNS
+
+    def run_bytes(_key, group) -> float:       # a row per 0.05 s tick of the longest mission
+        return (max(m.duration for _, m in group) / 0.05 + 2) * len(MISSION_COLUMNS) * 8
+
+    for batch in _batches(groups, run_bytes):
+        try:
+            from bb2_mission.batch import run_missions_batch
+
+            results = run_missions_batch([m for _, m in batch])
+        except Exception:  # noqa: BLE001 -- the batch refused or failed: every run alone below
+            continue
+        for (i, _m), res in zip(batch, results):
+            if str(res.summary.end_reason) == "diverged":
+                continue                     # alone below: the single run's own message
+            t1 = time.perf_counter()
+            try:
+                status, message, figures = _mission_outcome(spec, res)
+            except Exception:  # noqa: BLE001
+                continue
+            rows[i] = _row_outcome(_row_inputs(spec, i), figures, status, message,
+                                   res.summary.wall_time_s + time.perf_counter() - t1)
     return [rows[int(i)] if int(i) in rows else run_task(spec, i) for i in indices]
 
 

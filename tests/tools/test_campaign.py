@@ -477,3 +477,53 @@ def test_a_chunk_of_maneuvers_flies_as_one_batch_and_only_the_diverged_runs_alon
     alone.clear()
     worker.run_tasks(spec, [0, 1, 2])
     assert alone == [0, 1, 2]
+
+
+# ------------------------------------------------------------------------------------------ mission batches
+# 32 canyon runs of 3 s (two workers: two batches of 16): sea states, adaptation, a gain; limit 60 m grounds a run
+# at its first tick (the lowest hull point starts 44.4 m above the floor)
+MISSION_BATCH_SPEC = {
+    "mission": "canyon",
+    "seed": 5,
+    "samples": 16,
+    "vary": {"duration_s": 3, "sea_state": {"choice": [0, 3, 5]},
+             "stack.guidance.d_m": {"uniform": [150.0, 350.0]},
+             "limits.min_hull_clearance_m": {"choice": [0.0, 0.0, 0.0, 60.0]}, "adaptation": [True, False]},
+    "collect": ["rms_vertical", "rms_horizontal", "max_vertical_m", "min_clearance", "end_reason",
+                "mission_time_s"],
+}
+
+
+def test_mission_batches_give_the_table_of_runs_flown_one_by_one(tmp_path):
+    spec = _write_spec(tmp_path / "canyon32.yaml", MISSION_BATCH_SPEC)
+    r = _campaign(str(spec), "--out", str(tmp_path / "batched"), "--workers", "2", timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    r = _campaign(str(spec), "--out", str(tmp_path / "alone"), "--workers", "2", "--batch", "1", timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    alone = _comparable(_table(tmp_path / "alone"))
+    assert len(alone) == 32 and _comparable(_table(tmp_path / "batched")) == alone
+    status = [row["status"] for row in alone]
+    assert status.count("ok") >= 16 and "grounded" in status, status
+    assert {row["sea_state"] for row in alone} == {0, 3, 5}
+
+
+def test_a_chunk_of_missions_flies_as_one_batch(monkeypatch):
+    """``run_tasks``: the missions of a chunk fly together (no single run), rows as the single runs give them."""
+    from bb2_tools.campaign import worker
+
+    spec = parse_spec(MISSION_BATCH_SPEC)
+    alone: list[int] = []
+    single = worker.run_task
+
+    def spy(s, i):
+        alone.append(int(i))
+        return single(s, i)
+
+    monkeypatch.setattr(worker, "run_task", spy)
+    rows = worker.run_tasks(spec, list(range(worker.BATCH_MIN)))
+    assert [r["index"] for r in rows] == list(range(worker.BATCH_MIN)) and alone == []
+    assert [r for r in rows if r["status"] == "grounded"], rows
+    def same(row):
+        return {k: v for k, v in row.items() if k != "wall_time_s"}
+
+    assert [same(single(spec, i)) for i in (0, 1)] == [same(r) for r in rows[:2]]
