@@ -108,13 +108,15 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[M
     for r, v in zip(runners, views):
         r.sim = v
     rows = [_Rows(r.n_steps + 2) for r in runners]     # a row per tick: at most n_steps ticks and an ending one
+    terrains = _shared_terrains(runners)
     planes = np.zeros((len(M), 5))
     rps = np.zeros(len(M))
     running = list(range(len(M)))
     while running:
         ticks: dict[int, Any] = {}
+        clear = _clearances(runners, running, terrains)
         for i in running:
-            tick = runners[i].begin_tick()
+            tick = runners[i].begin_tick(clear.get(i))
             if isinstance(tick, MissionStep):
                 rows[i].keep(tick)
             elif tick.event is not None:
@@ -150,6 +152,44 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[M
         m = r.mission
         path_native = m.path.to_frame("native") if m.path.frame != "native" else m.path
         out.append(MissionResult(m, traj, summarize(r, traj, path_native, wall), path_native))
+    return out
+
+
+def _shared_terrains(runners: list[MissionRunner]) -> list[Any]:
+    """Per runner, the terrain its clearances are interpolated on: one object for all runners whose terrains
+    are equal grids (so that one call serves them), None without terrain."""
+    out: list[Any] = []
+    distinct: list[Any] = []
+    for r in runners:
+        t = r.terrain
+        if t is not None:
+            t = next((d for d in distinct if d.x.shape == t.x.shape and d.y.shape == t.y.shape and
+                      d.z.shape == t.z.shape and np.array_equal(d.x, t.x) and np.array_equal(d.y, t.y) and
+                      np.array_equal(d.z, t.z, equal_nan=True)), t)
+            if t is r.terrain and all(d is not t for d in distinct):
+                distinct.append(t)
+        out.append(t)
+    return out
+
+
+def _clearances(runners: list[MissionRunner], running: list[int], terrains: list[Any]) -> dict[int, Any]:
+    """The clearances of the running runners' states, the terrain interpolated once per shared terrain for all
+    their probe points (point by point: each value as the runner's own call gives it)."""
+    from bb2_mission.components import terrain_elevation
+
+    out: dict[int, Any] = {}
+    groups: dict[int, list[int]] = {}
+    for i in running:
+        if terrains[i] is not None:
+            groups.setdefault(id(terrains[i]), []).append(i)
+    for members in groups.values():
+        pts = [runners[i].probe_points(runners[i].sim.x.copy()) for i in members]
+        allp = np.concatenate(pts)
+        zt = terrain_elevation(terrains[members[0]], allp[:, 0], allp[:, 1])
+        k = 0
+        for i, p in zip(members, pts):
+            out[i] = runners[i].clearances_at(p, zt[k:k + len(p)])
+            k += len(p)
     return out
 
 

@@ -122,8 +122,18 @@ class MissionRunner:
     def _clearances(self, x: np.ndarray) -> tuple[float, float, float]:
         if self.terrain is None:
             return math.nan, math.nan, math.nan
-        pts = np.vstack([x[0:3], self.c.probes.world(x)])
-        zt = terrain_elevation(self.terrain, pts[:, 0], pts[:, 1])
+        pts = self.probe_points(x)
+        return self.clearances_at(pts, terrain_elevation(self.terrain, pts[:, 0], pts[:, 1]))
+
+    def probe_points(self, x: np.ndarray) -> np.ndarray:
+        """The CG and the hull probes (native earth, m) of state x: row 0 the CG."""
+        return np.vstack([x[0:3], self.c.probes.world(x)])
+
+    @staticmethod
+    def clearances_at(pts: np.ndarray, zt: np.ndarray) -> tuple[float, float, float]:
+        """(terrain z under the CG, CG clearance, lowest hull point's clearance) from :meth:`probe_points` and the
+        terrain elevation zt under them (the terrain's interpolation is point by point, so a batch of runners may
+        evaluate it for all their points at once)."""
         cl = pts[:, 2] - zt
         hull = float(np.nanmin(cl[1:])) if np.isfinite(cl[1:]).any() else math.nan
         return float(zt[0]), float(cl[0]), hull
@@ -143,12 +153,13 @@ class MissionRunner:
                 tick.event = MissionEvent(EndReason.DIVERGED, tick.state.t, tick.x[0:3].copy(), str(e))
         return self.finish_tick(tick, rec)
 
-    def begin_tick(self) -> "Tick | MissionStep":
+    def begin_tick(self, clearances: tuple[float, float, float] | None = None) -> "Tick | MissionStep":
         """The tick's half before the ROM step: the state at t_n, the clearances, the stack's output and the
         limits.  Returns the :class:`Tick` (its commands clamped for the ROM, its ``event`` if a limit ends the
         run before the step), or the ended :class:`MissionStep` of a control error.  :meth:`step` is
         ``begin_tick``, the ROM step (unless ``event``), :meth:`finish_tick`; a batch of runners shares the
-        middle (:mod:`bb2_mission.batch`)."""
+        middle (:mod:`bb2_mission.batch`), and may give the clearances of this state (as :meth:`_clearances`
+        makes them)."""
         from bb2_control.errors import NonFiniteInputError, PathFollowingError
         from bb2_sim.state import VehicleState
 
@@ -157,7 +168,7 @@ class MissionRunner:
         sim = self.sim
         x = sim.x.copy()
         state = VehicleState.from_vector(sim.t, x)
-        tz, cl, hull = self._clearances(x)
+        tz, cl, hull = self._clearances(x) if clearances is None else clearances
         flown = self.nav.state(sim.t) if self.nav is not None else state
         try:
             out = self.stack.step(flown)

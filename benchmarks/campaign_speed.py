@@ -3,7 +3,7 @@ one-process-per-run baseline; plus the memory of building the results of a 100,0
 
     .venv/bin/python benchmarks/campaign_speed.py [--mission missions/canyon.yaml] [--runs 8]
         [--duration S] [--no-baseline] [--no-ray] [--store-rows 100000] [--maneuvers 256] [--only-maneuvers]
-        [--mission-batch-runs 64] [--mission-batches 128]
+        [--mission-batch-runs 64] [--mission-batches 128] [--mission-sea-states 0,3,5]
 
 Every campaign is the same SPEC (the mission with the guidance look-ahead ``stack.guidance.d_m`` drawn uniform in
 [200, 300] m and ``adaptation`` on/off): runs/s is runs / wall time of the engine (pool or cluster start-up
@@ -13,7 +13,8 @@ Ray's own multi-node test cluster (``ray.cluster_utils.Cluster``: K raylets of 1
 reported as such).  The baseline is today's way: one ``bb2-sim mission`` process per run, two at a time.  The
 engines are compared flying one run per task (``--batch 1``).
 
-``--mission-batch-runs N``: the mission campaign of N runs (sea state 0/3/5 drawn too) by the local pool of 2
+``--mission-batch-runs N``: the mission campaign of N runs (sea state drawn from ``--mission-sea-states``, default
+0/3/5, too) by the local pool of 2
 workers, one by one and flown together (``--mission-batches``: the ``--batch`` values, default 128): each worker
 flies the missions of its chunk with one exact batch ROM (bb2_mission.batch), each mission's stack alone; the
 goal line takes the faster way.
@@ -157,12 +158,12 @@ def maneuver_batches(n: int, sea_states: list[float], batches: list[int]) -> Non
         print(f"  batch / one-by-one throughput: {w1 / wb:.2f}; tables equal to the last digit: {key(r1) == key(rb)}")
 
 
-def mission_batches(mission: str, n: int, duration: float | None, batches: list[int]) -> float:
-    """The mission campaign of ``n`` runs (sea state 0/3/5 drawn too) by the local pool of 2 workers, one by one
-    and flown together (``--batch B``); returns the best simulated seconds per second."""
-    spec = make_spec(mission, n, duration, sea_states=[0, 3, 5])
+def mission_batches(mission: str, n: int, duration: float | None, batches: list[int], sea_states: list[int]) -> float:
+    """The mission campaign of ``n`` runs (the sea state drawn from ``sea_states`` too) by the local pool of 2
+    workers, one by one and flown together (``--batch B``); returns the best simulated seconds per second."""
+    spec = make_spec(mission, n, duration, sea_states=sea_states)
     n = min(n, spec.n_runs)
-    print(f"mission campaign: {n} runs (sea states 0/3/5 drawn), local pool of 2 workers")
+    print(f"mission campaign: {n} runs (sea states {'/'.join(map(str, sea_states))} drawn), local pool of 2 workers")
     w1, r1 = timed(LocalEngine(2, batch=1), spec, n)
     print(line("one by one (--batch 1)", n, w1, rows=r1))
     best = sum(r.get("mission_time_s") or 0.0 for r in r1) / w1
@@ -190,6 +191,7 @@ def main(argv=None) -> int:
     ap.add_argument("--mission-batch-runs", type=int, default=64,
                     help="runs of the mission batch comparison (0: skip)")
     ap.add_argument("--mission-batches", default="128", help="--batch values of the mission batch comparison")
+    ap.add_argument("--mission-sea-states", default="0,3,5", help="sea states drawn in the mission batch comparison")
     a = ap.parse_args(argv)
     os.environ.setdefault("MPLBACKEND", "Agg")
     if a.only_maneuvers:
@@ -228,7 +230,8 @@ def main(argv=None) -> int:
     how = "2 local workers, one by one"
     if a.mission_batch_runs:
         rate = mission_batches(a.mission, a.mission_batch_runs, a.duration,
-                               [int(x) for x in a.mission_batches.split(",")])
+                               [int(x) for x in a.mission_batches.split(",")],
+                               [int(x) for x in a.mission_sea_states.split(",")])
         if rate > sim_rate:
             sim_rate, how = rate, "2 local workers, missions flown together"
     minutes = 1000 * 475.15 / sim_rate / 60 if sim_rate else float("nan")
