@@ -1,10 +1,10 @@
 """Where the runs fly: ``local`` (a process pool on this machine) or ``ray`` (a Ray cluster).
 
-Both call :func:`bb2_tools.campaign.worker.run_tasks` for a chunk of runs (one run, or for a maneuver campaign up
-to ``batch`` runs flown together by the batch ROM: :func:`chunk_size`) and hand each row to the driver's ``on_row``
-as it lands, so the results are the same whatever the engine, the number of workers, the chunks or the order of
-completion.  At most a small window of chunks is in flight (about twice the workers), so a 100,000-run campaign
-never holds more than that in memory.
+Both call :func:`bb2_tools.campaign.worker.run_tasks` for a chunk of runs (one run, or for a campaign on the
+library runner up to ``batch`` runs flown together by the batch ROM: :func:`chunk_size`) and hand each row to the
+driver's ``on_row`` as it lands, so the results are the same whatever the engine, the number of workers, the
+chunks or the order of completion.  At most a small window of chunks is in flight (about twice the workers), so
+a 100,000-run campaign never holds more than that in memory.
 
 A worker that dies (SIGKILL, out of memory) breaks the local pool: the pool is rebuilt and the runs that
 were in flight are flown again; a run in flight at three such deaths is recorded as ``error``.  Ray retries
@@ -24,7 +24,7 @@ __all__ = ["LocalEngine", "RayEngine", "make_engine", "chunk_size", "ENGINES", "
 
 ENGINES = ("local", "ray")
 DEFAULT_BATCH = 128
-"""Most maneuver runs one worker flies together (``bb2-campaign --batch``)."""
+"""Most runs (maneuvers or missions) one worker flies together (``bb2-campaign --batch``)."""
 _MAX_ATTEMPTS = 3
 _PRELOAD = ["bb2_tools.campaign.worker", "bb2_mission.runner", "bb2_mission.schema", "bb2_sim.maneuvers",
             "bb2_sim.metrics", "scipy.spatial", "scipy.special"]
