@@ -217,75 +217,73 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
     wall time is its share of its batch's."""
     install_worker_caches()
     if spec.target == "mission":
-        return _run_mission_tasks(spec, indices)
-    rows: dict[int, dict[str, Any]] = {}
-    groups: dict[Any, list[tuple[int, Any]]] = {}
-    if batched(spec) and len(indices) >= BATCH_MIN:
-        for i in indices:
-            try:
-                s = maneuver_settings_of(spec, spec.document(i))
-            except Exception:  # noqa: BLE001 -- run alone below: its row then says why
-                continue
-            if s.environment is None:
-                groups.setdefault((s.profile, s.duration), []).append((int(i), s))
-    from bb2_sim.maneuvers import OUTPUT_COLUMNS
+        from bb2_mission.records import MISSION_COLUMNS
 
-    for batch in _batches(groups, lambda key, _group: (key[1] / 0.1 + 1) * len(OUTPUT_COLUMNS) * 8):
-        try:
-            from bb2_sim.batch.maneuvers import run_maneuvers_batch
+        def mission_of(i: int) -> Any:
+            from bb2_mission.batch import batch_refusal
 
-            results = run_maneuvers_batch([s for _, s in batch])
-        except Exception:  # noqa: BLE001 -- the batch refused or failed: every run alone below
-            continue
-        for (i, s), res in zip(batch, results):
-            if res.error is not None:
-                continue                     # alone below: the single run's own message
-            t1 = time.perf_counter()
-            try:
-                status, message, figures = _maneuver_outcome(spec, s, res)
-            except Exception:  # noqa: BLE001
-                continue
-            rows[i] = _row_outcome(_row_inputs(spec, i), figures, status, message,
-                                   res.wall_time_s + time.perf_counter() - t1)
-    return [rows[int(i)] if int(i) in rows else run_task(spec, i) for i in indices]
+            m = build_mission(spec, spec.document(i))
+            return m, ((str(m.hull), str(m.profile)) if batch_refusal(m) is None else None)
 
-
-def _run_mission_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]]:
-    """:func:`run_tasks` for missions."""
-    rows: dict[int, dict[str, Any]] = {}
-    groups: dict[Any, list[tuple[int, Any]]] = {}
-    if batched(spec) and len(indices) >= BATCH_MIN:
-        from bb2_mission.batch import batch_refusal
-
-        for i in indices:
-            try:
-                m = build_mission(spec, spec.document(i))
-            except Exception:  # noqa: BLE001 -- run alone below: its row then says why
-                continue
-            if batch_refusal(m) is None:
-                groups.setdefault((str(m.hull), str(m.profile)), []).append((int(i), m))
-    from bb2_mission.records import MISSION_COLUMNS
-
-    def run_bytes(_key, group) -> float:       # a row per 0.05 s tick of the longest mission
-        return (max(m.duration for _, m in group) / 0.05 + 2) * len(MISSION_COLUMNS) * 8
-
-    for batch in _batches(groups, run_bytes):
-        try:
+        def fly_missions(ms: list[Any]) -> list[Any]:
             from bb2_mission.batch import run_missions_batch
 
-            results = run_missions_batch([m for _, m in batch])
+            return run_missions_batch(ms)
+
+        return _fly_together(
+            spec, indices, mission_of, fly_missions,
+            # a row per 0.05 s tick of the group's longest mission
+            run_bytes=lambda _key, group: (max(m.duration for _, m in group) / 0.05 + 2) * len(MISSION_COLUMNS) * 8,
+            diverged=lambda res: str(res.summary.end_reason) == "diverged",
+            outcome=lambda _m, res: _mission_outcome(spec, res), wall_s=lambda res: res.summary.wall_time_s)
+    from bb2_sim.maneuvers import OUTPUT_COLUMNS
+
+    def maneuver_of(i: int) -> Any:
+        s = maneuver_settings_of(spec, spec.document(i))
+        return s, ((s.profile, s.duration) if s.environment is None else None)
+
+    def fly_maneuvers(settings: list[Any]) -> list[Any]:
+        from bb2_sim.batch.maneuvers import run_maneuvers_batch
+
+        return run_maneuvers_batch(settings)
+
+    return _fly_together(
+        spec, indices, maneuver_of, fly_maneuvers,
+        run_bytes=lambda key, _group: (key[1] / 0.1 + 1) * len(OUTPUT_COLUMNS) * 8,
+        diverged=lambda res: res.error is not None,
+        outcome=lambda s, res: _maneuver_outcome(spec, s, res), wall_s=lambda res: res.wall_time_s)
+
+
+def _fly_together(spec: CampaignSpec, indices: Sequence[int], item_of, fly, *, run_bytes, diverged, outcome,
+                  wall_s) -> list[dict[str, Any]]:
+    """:func:`run_tasks` on its kind's pieces: ``item_of(index)`` -> (the run's item, its batch group key or None to
+    fly it alone), ``fly(items)`` -> their results together, ``run_bytes`` (see :func:`_batches`), ``diverged(res)``
+    (then flown again alone), ``outcome(item, res)`` -> (status, message, figures), ``wall_s(res)``."""
+    rows: dict[int, dict[str, Any]] = {}
+    groups: dict[Any, list[tuple[int, Any]]] = {}
+    if batched(spec) and len(indices) >= BATCH_MIN:
+        for i in indices:
+            try:
+                item, key = item_of(i)
+            except Exception:  # noqa: BLE001 -- run alone below: its row then says why
+                continue
+            if key is not None:
+                groups.setdefault(key, []).append((int(i), item))
+    for batch in _batches(groups, run_bytes):
+        try:
+            results = fly([item for _, item in batch])
         except Exception:  # noqa: BLE001 -- the batch refused or failed: every run alone below
             continue
-        for (i, _m), res in zip(batch, results):
-            if str(res.summary.end_reason) == "diverged":
+        for (i, item), res in zip(batch, results):
+            if diverged(res):
                 continue                     # alone below: the single run's own message
             t1 = time.perf_counter()
             try:
-                status, message, figures = _mission_outcome(spec, res)
+                status, message, figures = outcome(item, res)
             except Exception:  # noqa: BLE001
                 continue
             rows[i] = _row_outcome(_row_inputs(spec, i), figures, status, message,
-                                   res.summary.wall_time_s + time.perf_counter() - t1)
+                                   wall_s(res) + time.perf_counter() - t1)
     return [rows[int(i)] if int(i) in rows else run_task(spec, i) for i in indices]
 
 
