@@ -454,12 +454,9 @@ def test_ray_flies_maneuver_batches_as_the_local_pool(maneuver_batched, ray_clus
     assert _comparable(_table(tmp_path / "ray")) == _comparable(_table(batched))
 
 
-def test_a_chunk_of_maneuvers_flies_as_one_batch_and_only_the_diverged_runs_alone(monkeypatch):
-    """``run_tasks``: the runs of a chunk fly together; ``run_task`` (the single run) is called only for those that
-    diverged in the batch, whose rows then carry the single run's own message."""
-    from bb2_tools.campaign import worker
-
-    spec = parse_spec(MANEUVER_SPEC)
+def _spy_single_runs(monkeypatch, worker) -> tuple[list[int], object]:
+    """Records the runs ``worker.run_tasks`` flies alone (through ``run_task``); returns (that list, the original
+    ``run_task``)."""
     alone: list[int] = []
     single = worker.run_task
 
@@ -468,6 +465,16 @@ def test_a_chunk_of_maneuvers_flies_as_one_batch_and_only_the_diverged_runs_alon
         return single(s, i)
 
     monkeypatch.setattr(worker, "run_task", spy)
+    return alone, single
+
+
+def test_a_chunk_of_maneuvers_flies_as_one_batch_and_only_the_diverged_runs_alone(monkeypatch):
+    """``run_tasks``: the runs of a chunk fly together; ``run_task`` (the single run) is called only for those that
+    diverged in the batch, whose rows then carry the single run's own message."""
+    from bb2_tools.campaign import worker
+
+    spec = parse_spec(MANEUVER_SPEC)
+    alone, single = _spy_single_runs(monkeypatch, worker)
     rows = worker.run_tasks(spec, list(range(worker.BATCH_MIN)))
     assert [r["index"] for r in rows] == list(range(worker.BATCH_MIN))
     diverged = [r["index"] for r in rows if r["status"] == "diverged"]
@@ -512,14 +519,7 @@ def test_a_chunk_of_missions_flies_as_one_batch(monkeypatch):
     from bb2_tools.campaign import worker
 
     spec = parse_spec(MISSION_BATCH_SPEC)
-    alone: list[int] = []
-    single = worker.run_task
-
-    def spy(s, i):
-        alone.append(int(i))
-        return single(s, i)
-
-    monkeypatch.setattr(worker, "run_task", spy)
+    alone, single = _spy_single_runs(monkeypatch, worker)
     rows = worker.run_tasks(spec, list(range(worker.BATCH_MIN)))
     assert [r["index"] for r in rows] == list(range(worker.BATCH_MIN)) and alone == []
     assert [r for r in rows if r["status"] == "grounded"], rows
