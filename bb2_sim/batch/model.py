@@ -23,6 +23,7 @@ from ..frames import rotation_native
 from ..model import BB2Model
 from ..propeller import PropellerLoad
 from ..waves import Wave, orbital_velocity_earth, wave_for_sea_state
+from . import libm
 from .actuators import BatchActuatorOutputs
 from .hull import hull_loads
 from .lookup import BatchRomTables, Segments
@@ -60,8 +61,9 @@ class BatchModel:
 
     ``waves``: one :class:`Wave` per boat (calm: ``Wave()``), or None for ``n_boats`` boats in the model's own
     sea state. The model's hull, parameters, tables, profile (every switch is supported) and mass are shared.
-    ``exact``: the pressure integral's plane blocks follow the scalar code's kernels too (bit for bit the single
-    evaluation on a machine where numpy's and math's sin/cos agree; about twice the cost per boat).
+    ``exact``: the pressure integral's plane blocks follow the scalar code's kernels too, and the flow angles, plane
+    incidences and weight components take the C library's functions as the scalar code does (:mod:`.libm`): bit
+    for bit the single evaluation (about twice the cost per boat).
     """
 
     def __init__(self, model: BB2Model, waves: Sequence[Wave] | None = None, *, n_boats: int | None = None,
@@ -157,14 +159,15 @@ class BatchModel:
         ue, ve, we = uw_cg[0] - u, uw_cg[1] - v, uw_cg[2] - w
         small = np.abs(ue) <= FLOW_ANGLE_GUARD_M_S
         ue_safe = np.where(small, 1.0, ue)
+        arctan = libm.arctan if self.exact else np.arctan          # the scalar code's math.atan (exact)
         beta = np.where(small, np.where(ve < 0, -FLOW_ANGLE_AT_GUARD_DEG, FLOW_ANGLE_AT_GUARD_DEG),
-                        -np.arctan(ve / ue_safe) * RAD2DEG)
+                        -arctan(ve / ue_safe) * RAD2DEG)
         alpha = np.where(small, np.where(we < 0, -FLOW_ANGLE_AT_GUARD_DEG, FLOW_ANGLE_AT_GUARD_DEG),
-                         np.arctan(we / ue_safe) * RAD2DEG)
+                         arctan(we / ue_safe) * RAD2DEG)
         U = np.sqrt(ue * ue + ve * ve + we * we)
 
         # planes (3.2, 3.3, 5.x)
-        UeX, aX = plane_flow(u, v, w, p_, q, r, uw_planes, P, guard=prof.zero_speed_guard)
+        UeX, aX = plane_flow(u, v, w, p_, q, r, uw_planes, P, guard=prof.zero_speed_guard, exact=self.exact)
         dXe = act.planes_deg + aX
         Fp = plane_loads(dXe, UeX, u, q, Z0, P, self.tables, seg, n_clamped_depth=prof.n_planes_clamped_depth)
 
@@ -207,8 +210,9 @@ class BatchModel:
 
         # statics (7.5)
         W = (self.model.Mb + act.dmass_kg) * P.g
-        st, ct = np.sin(theta), np.cos(theta)
-        sphi, cphi = np.sin(phi), np.cos(phi)
+        sin, cos = (libm.sin, libm.cos) if self.exact else (np.sin, np.cos)   # the scalar code's math (exact)
+        st, ct = sin(theta), cos(theta)
+        sphi, cphi = sin(phi), cos(phi)
         X_stat = BFM[:, 0] + W * st
         if prof.static_forces_correct:
             Y_stat = BFM[:, 1] - W * ct * sphi

@@ -9,17 +9,19 @@ from __future__ import annotations
 import numpy as np
 
 from ..parameters import RomParameters
+from . import libm
 from .lookup import BatchRomTables, Segments
 
 RAD2DEG = 180.0 / np.pi
 
 
 def plane_flow(u, v, w, p, q, r, uw_planes: np.ndarray, params: RomParameters,
-               guard: bool = False) -> tuple[np.ndarray, np.ndarray]:
+               guard: bool = False, exact: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Relative speed UeX (m/s) and geometric incidence aX (deg), both (N, 5), at the five planes.
 
     u..r: (N,) body velocities and rates; uw_planes: (3, 5, N) wave velocities at the planes, body axes.
     Without ``guard`` a zero relative speed gives NaN (the scalar code raises): the boat diverges.
+    ``exact``: the incidence through the C library's acos, as the scalar code (:mod:`.libm`).
     """
     nh0, nh1, nh2 = params.hull_axis_list
     rx, ry, rz = params.plane_points_body.T                   # (5,) each: plane i in column i
@@ -40,7 +42,7 @@ def plane_flow(u, v, w, p, q, r, uw_planes: np.ndarray, params: RomParameters,
     c = (px * ux + py * uy + pz * uz) / den
     if guard:
         c = np.where(den > 0.0, np.maximum(c, -1.0), 1.0)
-    ang = np.where(c >= 1.0, 0.0, np.arccos(c) * RAD2DEG * k)
+    ang = np.where(c >= 1.0, 0.0, (libm.arccos(c) if exact else np.arccos(c)) * RAD2DEG * k)
     aX = np.where(d0 * ux + d1 * uy + d2 * uz < 0, -ang, ang)
     return UeX, aX
 
