@@ -731,6 +731,9 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
                    help="stop the graph as stalled (exit 1) when the sim time has not advanced for S wall "
                         "seconds, or has not started S seconds after --ready-timeout (the nodes' start-up) "
                         f"(default {DEFAULT_STALL_TIMEOUT_S:g}; 0 = never)")
+    p.add_argument("--status-period", type=float, default=5.0, metavar="S",
+                   help="print the graph's status line (sim time, real-time factor, nodes) every S wall seconds "
+                        "when stderr is not a terminal (default 5)")
     p.add_argument("--ready-timeout", type=float, default=60.0,
                    help="seconds to wait for the recorder's subscriptions and (lockstep) the simulator's "
                         "publishers (default 60)")
@@ -759,6 +762,8 @@ def check_run_options(args: argparse.Namespace) -> None:
         raise LaunchError(f"--timeout must be > 0 and finite, got {args.timeout}")
     if not (args.stall_timeout >= 0 and math.isfinite(args.stall_timeout)):
         raise LaunchError(f"--stall-timeout must be >= 0 and finite, got {args.stall_timeout}")
+    if not (args.status_period > 0 and math.isfinite(args.status_period)):
+        raise LaunchError(f"--status-period must be > 0 and finite, got {args.status_period}")
     if not (args.ready_timeout > 0 and math.isfinite(args.ready_timeout)):
         raise LaunchError(f"--ready-timeout must be > 0 and finite, got {args.ready_timeout}")
 
@@ -845,7 +850,7 @@ def _main(argv: Sequence[str] | None) -> int:
     try:
         result = run_graph(sup, monitor, first=[s.name for s in specs if s.ready is not None],
                            ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
-                           stall_timeout_s=args.stall_timeout or None,
+                           status_period_s=args.status_period, stall_timeout_s=args.stall_timeout or None,
                            recorder_outside=args.external_recorder and not args.no_record)
     finally:
         sup.stop(hurry=True)

@@ -72,11 +72,13 @@ def read_until_sim_time(p: subprocess.Popen, min_sim_s: float = 0.0, timeout_s: 
 
 def launch_with_fault(mission: Path, out: Path, *args: str, fault, min_sim_s: float = 0.0,
                       timeout_s: float = 600.0) -> tuple[int, str]:
-    """``bb2-launch MISSION --out OUT --end-at simulator --timeout 600 ARGS``; once its sim time passes
-    ``min_sim_s``, ``fault()`` (a SIGKILL or SIGSTOP of a node); then the run to its end, at most ``timeout_s``.
+    """``bb2-launch MISSION --out OUT --end-at simulator --timeout 600 --status-period 0.5 ARGS``; once its sim
+    time passes ``min_sim_s`` (a status line every 0.5 s: within a few sim seconds of it however fast the machine),
+    ``fault()`` (a SIGKILL or SIGSTOP of a node); then the run to its end, at most ``timeout_s``.
     Returns (exit code, everything it printed on stderr); the launcher is killed if the test fails meanwhile."""
     p = subprocess.Popen([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--end-at",
-                          "simulator", "--timeout", "600", *args], cwd=out.parent, env=ros_env(),
+                          "simulator", "--timeout", "600", "--status-period", "0.5", *args], cwd=out.parent,
+                         env=ros_env(),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         seen = read_until_sim_time(p, min_sim_s)

@@ -154,6 +154,7 @@ def test_launch_refuses_bad_input_with_one_line(tmp_path):
         (mission, "--bag-dir", str(tmp_path), "--restart", "all=restart"): "restarting the simulator is refused",
         (mission, "--bag-dir", str(tmp_path), "--stall-timeout", "nan"): "--stall-timeout",
         (mission, "--bag-dir", str(tmp_path), "--timeout", "inf"): "--timeout",
+        (mission, "--bag-dir", str(tmp_path), "--status-period", "0"): "--status-period",
     }
     for args, text in cases.items():
         p = bb2("bb2-launch", *args, timeout=120)
