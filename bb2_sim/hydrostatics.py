@@ -65,6 +65,7 @@ class PressureIntegrator:
     def __init__(self, surfaces, rho: float, g: float):
         self.rho, self.g = float(rho), float(g)
         self.surfaces = surfaces
+        self._wave_grids: dict = {}        # the component seas' wave-load grids, by orbital-velocity points
         fixed_pts, fixed_W = _merge_points(np.asarray(surfaces.fixed_vertices, dtype=float),
                                            np.asarray(surfaces.fixed_area_vectors, dtype=float))
         coords, weights = [fixed_pts], [fixed_W]
@@ -169,10 +170,32 @@ class PressureIntegrator:
             c = np.concatenate([[[x0, z0]], self._pivots @ rxz.T + (x0, z0)])   # (B, 2)
             G = self._block_sums(v[:, 0], v[:, 1], c[:, 0], c[:, 1], t, wave, clip_emerged)
         else:
-            p0 = np.asarray(p_earth, dtype=float)
-            v = np.concatenate([R[None], R @ Ri])                      # (B, 3, 3): [vx; vy; vz] per block
-            c = np.concatenate([p0[None], self._pivots @ R.T + p0])    # (B, 3)
+            v, c = self._sea_blocks(p_earth, R, Ri)
             G = self._sea_block_sums(v, c, t, sea, clip_emerged, wave_load_method)
+        return self._sum_blocks(G, Ri)
+
+    def loads_and_orbital_velocity(self, p_earth: np.ndarray, R: np.ndarray, t: float, deflections_deg: np.ndarray,
+                                   sea, points_body: np.ndarray, *, q12: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`loads` of a component ``sea`` by the grid (not clipped) and the sea's orbital velocity (P, 3)
+        (earth axes, m/s) at ``points_body`` (P, 3) (body axes about the CG), as ``sea.orbital_velocity`` gives it
+        (``q12``: its phase shifted by -pi/2), from the same exponentials (single precision, as the grid)."""
+        Ri = self._plane_rotations(deflections_deg)
+        v, c = self._sea_blocks(p_earth, R, Ri)
+        rg = self.rho * self.g
+        G, uw = self.wave_grid(points_body).block_sums_and_orbital_velocity(sea.components, v, c, t, q12=q12)
+        return self._sum_blocks(rg * G + self._hydrostatic_sums(v, c), Ri), uw
+
+    def _sea_blocks(self, p_earth, R: np.ndarray, Ri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each block's earth rows [vx; vy; vz] (B, 3, 3) and origin (B, 3)."""
+        p0 = np.asarray(p_earth, dtype=float)
+        return np.concatenate([R[None], R @ Ri]), np.concatenate([p0[None], self._pivots @ R.T + p0])
+
+    def _hydrostatic_sums(self, v: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """G_b of the calm hydrostatic pressure -rho g z (exact, from the moments)."""
+        return (-self.rho * self.g) * (c[:, 2, None] * self._S0 + np.einsum("bk,bkm->bm", v[:, 2], self._S1))
+
+    def _sum_blocks(self, G: np.ndarray, Ri: np.ndarray) -> np.ndarray:
+        """[X, Y, Z, K, M, N] from the blocks' sums G (B, 6): the hull's, and each plane's rotated and moved."""
         out = -G[0]
         F = -np.einsum("bij,bj->bi", Ri, G[1:, :3])
         out[0:3] += F.sum(axis=0)
@@ -183,7 +206,7 @@ class PressureIntegrator:
                         method: str) -> np.ndarray:
         """G_b = sum over block b of p_j FM_j (B, 6) for the pressure of a component sea."""
         rg = self.rho * self.g
-        hydro = (-rg) * (c[:, 2, None] * self._S0 + np.einsum("bk,bkm->bm", v[:, 2], self._S1))
+        hydro = self._hydrostatic_sums(v, c)
         comps = sea.components
         if (comps is None or sea.calm) and not clip:
             return hydro
@@ -200,16 +223,19 @@ class PressureIntegrator:
             raise ValueError(f"wave_load_method must be 'grid' or 'direct', got {method!r}")
         return rg * self.wave_grid().block_sums(comps, v, c, t) + hydro
 
-    def wave_grid(self):
-        """The interpolation grids of the wave pressure (built once, on first use; see ``sea_spectra.yaml``)."""
-        if getattr(self, "_wave_grid", None) is None:
+    def wave_grid(self, points_body: np.ndarray | None = None):
+        """The interpolation grids of the wave pressure (built once per set of orbital-velocity points, on first
+        use; see ``sea_spectra.yaml`` and :class:`bb2_sim.sea.pressure_grid.WavePressureGrid`)."""
+        grids = self._wave_grids
+        key = None if points_body is None else np.asarray(points_body, dtype=float).tobytes()
+        if key not in grids:
             from .sea.data import sea_data
             from .sea.pressure_grid import WavePressureGrid
             cfg = sea_data()["wave_load_grid"]
             blocks = [(dT[:3].T, FMT.T) for dT, FMT in zip(self._dT, self._FMT)]
-            self._wave_grid = WavePressureGrid(blocks, [float(h) for h in cfg["spacings_m"]], int(cfg["order"]),
-                                               float(cfg["max_kh"]))
-        return self._wave_grid
+            grids[key] = WavePressureGrid(blocks, [float(h) for h in cfg["spacings_m"]], int(cfg["order"]),
+                                          float(cfg["max_kh"]), points=points_body)
+        return grids[key]
 
     def volume(self) -> float:
         """Enclosed volume of the undeflected surfaces from the same integral (calm, level, CG at z = 0).

@@ -91,6 +91,8 @@ class BB2Model:
         self.Mb = self.buoyancy_mass if trim_to_buoyancy else self.params.Mb
         p = self.params
         self._h = p.h
+        # where the flow is sampled (body axes, m): the CG, the 5 planes and the 15 added-mass sections
+        self._flow_points_body = np.vstack([np.zeros((1, 3)), p.plane_points_body, p.section_points_body])
 
     # -------------------------------------------------------------------------------------------
     def evaluate(self, t: float, x: np.ndarray, act: ActuatorOutputs, dmem: DerivativeMemory) -> Evaluation:
@@ -107,10 +109,15 @@ class BB2Model:
 
         # wave velocities (body axes) at the CG, the 5 planes and the 15 sections, in one call
         uh, vh, wh = u, v, w                     # velocity relative to the water (current) for the loads
+        BFM = None
         if self.sea is not None or self.current is not None:
-            pts_b = np.vstack([np.zeros((1, 3)), P.plane_points_body, P.section_points_body])
-            e = pos + pts_b @ R.T
-            if self.sea is not None:
+            e = pos + self._flow_points_body @ R.T
+            if self.sea is not None and self.wave_load_method == "grid" and not prof.free_surface_clipping:
+                # the pressure integral (7) and the orbital velocities from the grid's one evaluation of the sea
+                BFM, uw_e = self.hydro.loads_and_orbital_velocity(pos, R, t, act.planes_deg, self.sea,
+                                                                  self._flow_points_body,
+                                                                  q12=not prof.wave_velocity_in_phase)
+            elif self.sea is not None:
                 uw_e = self.sea.orbital_velocity(e, t, q12=not prof.wave_velocity_in_phase)
             elif not wave.calm:
                 uw_e = orbital_velocity_earth(wave, e[:, 0], e[:, 2], t, prof.wave_velocity_in_phase)
@@ -128,8 +135,7 @@ class BB2Model:
             uw_planes = np.zeros((5, 3))
             uw_sec = np.zeros((15, 3))
         else:
-            pts_b = np.vstack([np.zeros((1, 3)), P.plane_points_body, P.section_points_body])
-            e = pos + pts_b @ R.T
+            e = pos + self._flow_points_body @ R.T
             uw = orbital_velocity_earth(wave, e[:, 0], e[:, 2], t, prof.wave_velocity_in_phase) @ R
             uw_cg, uw_planes, uw_sec = uw[0], uw[1:6], uw[6:]
 
@@ -154,8 +160,9 @@ class BB2Model:
                                                    kpp_once=prof.kpp_once, sign_u_guard=prof.zero_speed_guard)
 
         # pressure integral (7)
-        BFM = self.hydro.loads(pos, R, t, wave, act.planes_deg, clip_emerged=prof.free_surface_clipping,
-                               sea=self.sea, wave_load_method=self.wave_load_method)
+        if BFM is None:
+            BFM = self.hydro.loads(pos, R, t, wave, act.planes_deg, clip_emerged=prof.free_surface_clipping,
+                                   sea=self.sea, wave_load_method=self.wave_load_method)
 
         # added mass (8)
         urel = section_relative_velocity(V, omega, uw_sec, P.section_points_body)

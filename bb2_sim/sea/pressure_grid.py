@@ -7,31 +7,36 @@ The pressure integrator needs, per block b of points d_j (block coordinates, m) 
 where the block's earth coordinates are x = c + V d (V = the earth rows of the block's rotation), so
 kappa_i = k_i (v_z + i (cos mu_i v_x + sin mu_i v_y)) and c_i = a_i exp(k_i c_z + i (k_i (c_x cos mu_i +
 c_y sin mu_i) - omega_i t + eps_i)). A direct sum costs (points x components) exp/cos evaluations. Here
-exp(kappa . d) is replaced by its tensor-product Lagrange interpolant on a regular grid d = g0 + h n
-(degree ``order`` per axis, the point in the middle cell of its stencil):
+exp(kappa . d) is replaced by its tensor-product Lagrange interpolant on a regular grid d = g0 + h n that
+spans the block's bounding box (degree ``order`` per axis; per axis n = max(order, ceil(extent / h) + 1) cells,
+so the spacing is below h and the point sits in the middle cell of its stencil except next to the ends):
 
     G_b ~= Re sum_i c_i sum_n exp(kappa_i . (g0 + h n)) Q_b[n],   Q_b[n] = sum_j L_n(d_j) FM_j,
 
 independent of the number of points. The interpolation error per axis is about 0.023 (|kappa_a| h)^4 of a
-component's local pressure (order 3), so the spacing follows the wavelength: every component i uses the
-coarsest spacing h of ``spacings_m`` with k_i h <= ``max_kh`` (the finest if none), and the components
-sharing a spacing share its grids (``sea_spectra.yaml`` -> ``wave_load_grid``). Long waves, most of a sea's
-energy, need few nodes: a 64-component JONSWAP sea puts about 50 of them on the 6 m grid.
+component's local pressure (order 3; up to 0.042 (|kappa_a| h)^4 next to the ends), so the spacing follows
+the wavelength: every component i uses the coarsest spacing h of ``spacings_m`` with k_i h <= ``max_kh`` (the
+finest if none), and the components sharing a spacing share its grids (``sea_spectra.yaml`` ->
+``wave_load_grid``). Long waves, most of a sea's energy, need few nodes: a 64-component JONSWAP sea puts about
+50 of them on the 6 m grid, where a control plane's block is 4 x 4 x 4 nodes and the hull's 14 x 20 used;
+the orbital velocities at the model's flow points are a few more columns of the same exponentials.
 
-Per spacing, a block's grid is evaluated in one of two forms, whichever costs less (:func:`_factorise`):
-
-* factorised (the hull): exp(kappa . d_n) = X1[i, n1] Y[i, (n2, n3)] with X1 the x grid line (carrying
-  c_i) and Y the (y, z) nodes that any point's stencil touches; the node sums are one real matrix product
-  Re(X1^T Y) (n1 x 2I times 2I x n23) and G_b = Q_b . node;
-* node by node (the small control-plane blocks): Re sum_i c_i exp(kappa_i . d_n) at every used node.
+Every block's grid is factorised, exp(kappa . d_n) = X1[i, n1] Y[i, (n2, n3)] with X1 the x grid line (carrying
+c_i) and Y the (y, z) nodes that any point's stencil touches; the node sums are one real matrix product
+Re(X1^T Y) (n1 x 2I times 2I x n23) and G_b = Q_b . node. The hull is contracted alone, the control planes
+padded to one shape and contracted together in batched products.
 
 The exponents of all grid lines and nodes of a spacing are one matrix product of per-component, per-block
-parameters with a fixed coefficient matrix. The cosines, sines and the exponentials of the decay are
-evaluated in single precision (numpy's vectorised float32 kernels: cos/sin about 15 times, exp about 4 times
-faster than float64 here) after the phases are reduced to [-pi, pi] in double precision: an error of about
-1e-7 of a component's pressure, far below the interpolation error (the exponents are capped at 80, below
-float32's overflow at 88, as no point of a hull reaches k z = 80). The hydrostatic part stays exact (pressure
-integrator moments); this is only the dynamic part.
+parameters with a fixed coefficient matrix, and everything from that product to the node sums runs in single
+precision (numpy's vectorised float32 kernels: cos/sin about 15 times, exp about 4 times faster than float64
+here, the products half the cost): the parameters are formed in double precision and the phase offsets (which
+grow with time and distance) reduced to [-pi, pi] there, so that a float32 exponent only adds a grid node's
+kappa . d, at most k times the hull's length (about 15 rad): an error of about 1e-6 of a component's pressure,
+far below the interpolation error. A node's value is the product of two factors (x line, (y, z) node) summed
+over 2 I terms, so each factor's exponent is capped at 40 (twice 40 plus ln(2 I) stays below float32's
+overflow at 88.7); no point of a hull in a sea comes near k z = 40 (100 m above the surface for a 15 m wave).
+The node sums are contracted with the weights Q in double precision. The
+hydrostatic part stays exact (pressure integrator moments); this is only the dynamic part.
 """
 from __future__ import annotations
 
@@ -40,8 +45,8 @@ import numpy as np
 from .components import WaveComponents
 
 TWO_PI = 2.0 * np.pi
-EXP_CAP = 80.0
-"""Largest exponent evaluated (float32's exp overflows at 88.7)."""
+EXP_CAP = 40.0
+"""Largest exponent of a factor (two factors and a sum of 2 I products must stay below float32's 3.4e38)."""
 
 
 def _lagrange_weights(u: np.ndarray, order: int) -> np.ndarray:
@@ -55,16 +60,21 @@ def _lagrange_weights(u: np.ndarray, order: int) -> np.ndarray:
 
 
 class _BlockGrid:
-    """Q_b[n] = sum_j L_n(d_j) FM_j on the regular grid of one block at spacing h (only the nodes used)."""
+    """Q_b[n] = sum_j L_n(d_j) FM_j on the regular grid of one block, spacing at most h per axis (only the nodes
+    used)."""
 
     def __init__(self, d: np.ndarray, FM: np.ndarray, h: float, order: int):
-        t = d / h
-        base = np.floor(t).astype(np.int64) - (order - 1) // 2      # first stencil node per point and axis
-        lo = base.min(axis=0)
-        self.shape = tuple(int(s) for s in base.max(axis=0) - lo + order + 1)
-        self.g0 = lo * h                                              # (3,) m
-        self.h = h
-        rel = base - lo
+        # the grid spans the block's bounding box: per axis n = max(order, ceil(extent / h) + 1) cells of
+        # extent / n < h, each point's stencil centred on its cell except in the cells next to the ends
+        lo_m, ext = d.min(axis=0), np.ptp(d, axis=0)
+        ncell = np.maximum(order, np.ceil(ext / h - 1e-9) + 1).astype(np.int64)
+        hs = np.where(ext > 0, ext / ncell, h)                       # (3,) m
+        t = (d - lo_m) / hs
+        base = np.clip(np.floor(t).astype(np.int64) - (order - 1) // 2, 0, ncell - order)  # first stencil node
+        self.shape = tuple(int(n) + 1 for n in ncell)
+        self.g0 = lo_m                                                # (3,) m
+        self.h = hs
+        rel = base
         u = t - base
         Wax = [_lagrange_weights(u[:, a], order) for a in range(3)]  # (n, order+1) each
         n1, n2, n3 = self.shape
@@ -81,7 +91,7 @@ class _BlockGrid:
         self.used = np.zeros(size, dtype=bool)
         self.used[np.unique(flat_idx)] = True
         self.used = self.used.reshape(n1, n2 * n3)
-        self.nodes = [self.g0[a] + h * np.arange(self.shape[a]) for a in range(3)]
+        self.nodes = [self.g0[a] + hs[a] * np.arange(self.shape[a]) for a in range(3)]
 
 
 class _SpacingLevel:
@@ -92,7 +102,7 @@ class _SpacingLevel:
     ``big_factor`` times the median block's nodes (the hull) are contracted alone; the others (the control
     planes) are padded to one shape and contracted together in batched products."""
 
-    def __init__(self, blocks, h: float, order: int, big_factor: float = 3.0):
+    def __init__(self, blocks, h: float, order: int, points: np.ndarray | None = None, big_factor: float = 3.0):
         self.h = h
         self.grids = [_BlockGrid(d, FM, h, order) for d, FM in blocks]
         nb = len(blocks)
@@ -126,7 +136,12 @@ class _SpacingLevel:
             block_columns(b, n1p, n23p)
             QTs[s_, :, :g.shape[0], :len(keep[b])] = g.Q[:, keep[b], :].transpose(2, 0, 1)
         self.QTs = QTs.reshape(len(small), 6, n1p * n23p)
-        C_re, C_im = np.zeros((4 * nb, len(cols))), np.zeros((4 * nb, len(cols)))
+        self.small_end = len(cols)
+        pts = np.zeros((0, 3)) if points is None else np.asarray(points, dtype=float)
+        self.points = slice(len(cols), len(cols) + len(pts))      # exp(kappa . d_p + offset) of block 0, whole
+        C_re, C_im = np.zeros((4 * nb, len(cols) + len(pts))), np.zeros((4 * nb, len(cols) + len(pts)))
+        C_re[0:3, self.points] = C_im[0:3, self.points] = pts.T
+        C_re[3, self.points] = C_im[3, self.points] = 1.0
         for m, (b, x, yz) in enumerate(cols):
             if x is not None:                                     # kappa_x x + offset
                 C_re[4 * b, m] = C_im[4 * b, m] = x
@@ -136,54 +151,57 @@ class _SpacingLevel:
                 # the (y, z) factor enters conjugated, so that Re(X1^T Y) = [Re X1; Im X1]^T [Re Y; -Im Y]
                 # is one real product
                 C_im[4 * b + 1:4 * b + 3, m] = -yz
-        self.C_re, self.C_im = C_re, C_im
-        self.n_cols = len(cols)
+        self.C_re, self.C_im = C_re.astype(np.float32), C_im.astype(np.float32)
+        self.n_cols = C_re.shape[1]
 
     def _buffers(self, ni: int):
         """Work arrays for ni components (kept: fresh temporaries of this size cost page faults each call)."""
         if getattr(self, "_buf_n", None) != ni:
             m = self.n_cols
-            self._EI, self._ER, self._R = np.empty((ni, m)), np.empty((ni, m)), np.empty((ni, m))
-            self._T32 = np.empty((ni, m), dtype=np.float32)
-            self._E32 = np.empty((ni, m), dtype=np.float32)
-            self._X = np.empty((2 * ni, m))
+            self._EI, self._ER = np.empty((ni, m), np.float32), np.empty((ni, m), np.float32)
+            self._T = np.empty((ni, m), np.float32)
+            self._X = np.empty((2 * ni, m), np.float32)
             self._buf_n = ni
-        return self._EI, self._ER, self._R, self._T32, self._X
+        return self._EI, self._ER, self._T, self._X
 
-    def add_sums(self, P_re: np.ndarray, P_im: np.ndarray, out: np.ndarray) -> None:
-        """out (B, 6) += the sums of this level's components (P_* (I, 4 B) rows of kappa and offsets)."""
+    def add_sums(self, P_re: np.ndarray, P_im: np.ndarray, out: np.ndarray, point_weights: np.ndarray | None = None,
+                 point_sums: np.ndarray | None = None) -> None:
+        """out (B, 6) += the sums of this level's components (P_* (I, 4 B) float32 rows of kappa and offsets,
+        the imaginary offsets reduced to [-pi, pi]); point_sums (2, P, K) += [Re; Im] of the components' values
+        at the points times point_weights (I, K)."""
         ni = len(P_re)
-        EI, ER, R, T32, X = self._buffers(ni)
-        E32 = self._E32
+        EI, ER, T, X = self._buffers(ni)
         np.matmul(P_im, self.C_im, out=EI)                                   # (I, M) phases
-        np.multiply(EI, 1.0 / TWO_PI, out=R)
-        np.rint(R, out=R)
-        R *= TWO_PI
-        EI -= R                                                              # in [-pi, pi]
-        np.matmul(P_re, self.C_re, out=ER)
+        np.matmul(P_re, self.C_re, out=ER)                                   # (I, M) decay exponents
         np.minimum(ER, EXP_CAP, out=ER)
-        np.exp(ER, out=E32, dtype=np.float32)
-        np.cos(EI, out=T32, dtype=np.float32)
-        np.multiply(E32, T32, out=X[:ni])
-        np.sin(EI, out=T32, dtype=np.float32)
-        np.multiply(E32, T32, out=X[ni:])
+        np.exp(ER, out=ER)
+        np.cos(EI, out=T)
+        np.multiply(ER, T, out=X[:ni])
+        np.sin(EI, out=T)
+        np.multiply(ER, T, out=X[ni:])
         for b, xs, ys, QT in self.big:
             node = X[:, xs].T @ X[:, ys]                                     # (n1, n23) = Re(X1^T Y)
-            out[b] += QT @ node.ravel()
+            out[b] += QT @ node.ravel().astype(np.float64)
         ns = len(self.small)
         if ns:
-            Xs = X[:, self.small_start:].reshape(2 * ni, ns, -1)
+            Xs = X[:, self.small_start:self.small_end].reshape(2 * ni, ns, -1)
             node = Xs[:, :, :self.n1p].transpose(1, 2, 0) @ Xs[:, :, self.n1p:].transpose(1, 0, 2)
-            out[self.small] += (self.QTs @ node.reshape(ns, -1, 1))[:, :, 0]
+            out[self.small] += (self.QTs @ node.reshape(ns, -1, 1).astype(np.float64))[:, :, 0]
+        if point_sums is not None:
+            Xp = X[:, self.points]
+            point_sums[0] += Xp[:ni].T @ point_weights
+            point_sums[1] += Xp[ni:].T @ point_weights
 
 
 class WavePressureGrid:
     """Grids for the blocks of a :class:`bb2_sim.hydrostatics.PressureIntegrator` (same block order).
 
-    ``spacings_m``: one spacing or a list (coarsest used for a component with k h <= ``max_kh``)."""
+    ``spacings_m``: one spacing or a list (coarsest used for a component with k h <= ``max_kh``).
+    ``points`` (P, 3): points in block 0's coordinates (the body axes about the CG) where
+    :meth:`block_sums_and_orbital_velocity` also gives the sea's orbital velocity, from the same exponentials."""
 
     def __init__(self, blocks: list[tuple[np.ndarray, np.ndarray]], spacings_m, order: int,
-                 max_kh: float = np.inf):
+                 max_kh: float = np.inf, points: np.ndarray | None = None):
         spacings = sorted({float(s) for s in np.atleast_1d(spacings_m)})
         if order < 1 or not spacings or spacings[0] <= 0 or not max_kh > 0:
             raise ValueError(f"wave-load grid needs order >= 1, spacings > 0 and max_kh > 0, got {order}, "
@@ -191,13 +209,14 @@ class WavePressureGrid:
         self.spacings_m, self.order, self.max_kh = spacings, int(order), float(max_kh)
         self._blocks = blocks
         self.n_blocks = len(blocks)
+        self.points = None if points is None else np.array(points, dtype=float).reshape(-1, 3)
         self._levels: dict[float, _SpacingLevel] = {}
         self._comps: WaveComponents | None = None
 
     def level(self, h: float) -> _SpacingLevel:
         """The grids at spacing h (built on first use)."""
         if h not in self._levels:
-            self._levels[h] = _SpacingLevel(self._blocks, h, self.order)
+            self._levels[h] = _SpacingLevel(self._blocks, h, self.order, self.points)
         return self._levels[h]
 
     def spacing_of(self, k: np.ndarray) -> np.ndarray:
@@ -223,6 +242,9 @@ class WavePressureGrid:
             self._K = np.column_stack([k, k * np.cos(mu), k * np.sin(mu),
                                        np.log(np.maximum(comps.amplitude[order], 1e-300)), comps.phase[order]])
             self._eps, self._omega = comps.phase[order].copy(), comps.omega[order]
+            # the orbital velocity's weights per component: omega [cos mu, sin mu, 1]
+            self._point_weights = (self._omega[:, None] * np.column_stack([np.cos(mu), np.sin(mu), np.ones_like(mu)])
+                                   ).astype(np.float32)
             nb = self.n_blocks
             self._W = np.zeros((5, 2, nb, 4))
             self._W[3, 0, :, 3] = 1.0
@@ -231,6 +253,23 @@ class WavePressureGrid:
 
     def block_sums(self, comps: WaveComponents, v: np.ndarray, c: np.ndarray, t: float) -> np.ndarray:
         """(B, 6) sums of w_j FM_j; v (B, 3, 3) the earth rows [v_x; v_y; v_z] per block, c (B, 3) origins."""
+        return self._sums(comps, v, c, t, None)
+
+    def block_sums_and_orbital_velocity(self, comps: WaveComponents, v: np.ndarray, c: np.ndarray, t: float, *,
+                                        q12: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`block_sums` and the orbital velocity (P, 3) (earth axes, m/s) at the grid's ``points``, as
+        :meth:`bb2_sim.sea.ComponentSea.orbital_velocity` gives it (``q12``: its phase shifted by -pi/2), from
+        the same exponentials (single precision: about 1e-7 of each component's velocity)."""
+        if self.points is None:
+            raise ValueError("this wave-load grid was built without points for the orbital velocity")
+        S = np.zeros((2, len(self.points), 3))                  # [Re; Im] sum a e^{kz} e^{i th} omega [cos, sin, 1]
+        G = self._sums(comps, v, c, t, S)
+        if q12:                                                  # th - pi/2: cos -> sin, sin -> -cos
+            return G, np.column_stack([S[1, :, 0], S[1, :, 1], -S[0, :, 2]])
+        return G, np.column_stack([S[0, :, 0], S[0, :, 1], S[1, :, 2]])
+
+    def _sums(self, comps: WaveComponents, v: np.ndarray, c: np.ndarray, t: float,
+              point_sums: np.ndarray | None) -> np.ndarray:
         self._prepare(comps)
         nb, W, K = self.n_blocks, self._W, self._K
         W[0, 0, :, :3], W[0, 0, :, 3] = v[:, 2], c[:, 2]                       # k (v_z, c_z)
@@ -238,7 +277,11 @@ class WavePressureGrid:
         W[2, 1, :, :3], W[2, 1, :, 3] = v[:, 1], c[:, 1]                       # k sin mu (v_y, c_y)
         np.subtract(self._eps, self._omega * t, out=K[:, 4])
         P = K @ W.reshape(5, 8 * nb)                                             # (I, [re | im] x B x 4)
+        off = P[:, 4 * nb + 3::4]                                                # the phase offsets
+        off -= TWO_PI * np.rint(off * (1.0 / TWO_PI))                            # to [-pi, pi]
+        P32 = P.astype(np.float32)
         out = np.zeros((nb, 6))
         for level, i0, i1 in self._groups:
-            level.add_sums(P[i0:i1, :4 * nb], P[i0:i1, 4 * nb:], out)
+            level.add_sums(P32[i0:i1, :4 * nb], P32[i0:i1, 4 * nb:], out,
+                           None if point_sums is None else self._point_weights[i0:i1], point_sums)
         return out
