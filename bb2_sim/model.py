@@ -111,9 +111,11 @@ class BB2Model:
         uh, vh, wh = u, v, w                     # velocity relative to the water (current) for the loads
         BFM = None
         if self.sea is not None or self.current is not None:
-            e = pos + self._flow_points_body @ R.T
-            if self.sea is not None and self.wave_load_method == "grid" and not prof.free_surface_clipping:
-                # the pressure integral (7) and the orbital velocities from the grid's one evaluation of the sea
+            # a component sea on the grid: the pressure integral (7) and the orbital velocities from one evaluation
+            fused = self.sea is not None and self.sea.components is not None and self.wave_load_method == "grid" \
+                and not prof.free_surface_clipping
+            e = None if fused and self.current is None else pos + self._flow_points_body @ R.T
+            if fused:
                 BFM, uw_e = self.hydro.loads_and_orbital_velocity(pos, R, t, act.planes_deg, self.sea,
                                                                   self._flow_points_body,
                                                                   q12=not prof.wave_velocity_in_phase)

@@ -167,8 +167,8 @@ class _SpacingLevel:
     def add_sums(self, P_re: np.ndarray, P_im: np.ndarray, out: np.ndarray, point_weights: np.ndarray | None = None,
                  point_sums: np.ndarray | None = None) -> None:
         """out (B, 6) += the sums of this level's components (P_* (I, 4 B) float32 rows of kappa and offsets,
-        the imaginary offsets reduced to [-pi, pi]); point_sums (2, P, K) += [Re; Im] of the components' values
-        at the points times point_weights (I, K)."""
+        the imaginary offsets reduced to [-pi, pi]); point_sums (P, K) += [Re X_p; Im X_p]^T point_weights
+        (2 I, K), X_p the components' values at the points."""
         ni = len(P_re)
         EI, ER, T, X = self._buffers(ni)
         np.matmul(P_im, self.C_im, out=EI)                                   # (I, M) phases
@@ -188,9 +188,7 @@ class _SpacingLevel:
             node = Xs[:, :, :self.n1p].transpose(1, 2, 0) @ Xs[:, :, self.n1p:].transpose(1, 0, 2)
             out[self.small] += (self.QTs @ node.reshape(ns, -1, 1).astype(np.float64))[:, :, 0]
         if point_sums is not None:
-            Xp = X[:, self.points]
-            point_sums[0] += Xp[:ni].T @ point_weights
-            point_sums[1] += Xp[ni:].T @ point_weights
+            point_sums += X[:, self.points].T @ point_weights
 
 
 class WavePressureGrid:
@@ -242,9 +240,13 @@ class WavePressureGrid:
             self._K = np.column_stack([k, k * np.cos(mu), k * np.sin(mu),
                                        np.log(np.maximum(comps.amplitude[order], 1e-300)), comps.phase[order]])
             self._eps, self._omega = comps.phase[order].copy(), comps.omega[order]
-            # the orbital velocity's weights per component: omega [cos mu, sin mu, 1]
-            self._point_weights = (self._omega[:, None] * np.column_stack([np.cos(mu), np.sin(mu), np.ones_like(mu)])
-                                   ).astype(np.float32)
+            # the orbital velocity a e^{kz} omega [cos th cos mu, cos th sin mu, sin th] (q12: th - pi/2, cos -> sin,
+            # sin -> -cos) is [Re; Im] of the points' values times these weights, per level
+            z, wc, ws = np.zeros_like(mu), self._omega * np.cos(mu), self._omega * np.sin(mu)
+            horizontal, vertical = np.column_stack([wc, ws, z]), np.column_stack([z, z, self._omega])
+            by_phase = {False: (horizontal, vertical), True: (-vertical, horizontal)}
+            self._point_weights = {q12: [np.concatenate([a[i0:i1], b[i0:i1]]).astype(np.float32)
+                                         for _, i0, i1 in self._groups] for q12, (a, b) in by_phase.items()}
             nb = self.n_blocks
             self._W = np.zeros((5, 2, nb, 4))
             self._W[3, 0, :, 3] = 1.0
@@ -262,26 +264,22 @@ class WavePressureGrid:
         the same exponentials (single precision: about 1e-7 of each component's velocity)."""
         if self.points is None:
             raise ValueError("this wave-load grid was built without points for the orbital velocity")
-        S = np.zeros((2, len(self.points), 3))                  # [Re; Im] sum a e^{kz} e^{i th} omega [cos, sin, 1]
-        G = self._sums(comps, v, c, t, S)
-        if q12:                                                  # th - pi/2: cos -> sin, sin -> -cos
-            return G, np.column_stack([S[1, :, 0], S[1, :, 1], -S[0, :, 2]])
-        return G, np.column_stack([S[0, :, 0], S[0, :, 1], S[1, :, 2]])
+        uw = np.zeros((len(self.points), 3))
+        return self._sums(comps, v, c, t, uw, q12), uw
 
     def _sums(self, comps: WaveComponents, v: np.ndarray, c: np.ndarray, t: float,
-              point_sums: np.ndarray | None) -> np.ndarray:
+              point_sums: np.ndarray | None = None, q12: bool = False) -> np.ndarray:
         self._prepare(comps)
         nb, W, K = self.n_blocks, self._W, self._K
-        W[0, 0, :, :3], W[0, 0, :, 3] = v[:, 2], c[:, 2]                       # k (v_z, c_z)
-        W[1, 1, :, :3], W[1, 1, :, 3] = v[:, 0], c[:, 0]                       # k cos mu (v_x, c_x)
-        W[2, 1, :, :3], W[2, 1, :, 3] = v[:, 1], c[:, 1]                       # k sin mu (v_y, c_y)
+        vc = np.concatenate([v, c[:, :, None]], axis=2)                          # (B, 3, 4): [v_a | c_a] rows
+        W[0, 0], W[1, 1], W[2, 1] = vc[:, 2], vc[:, 0], vc[:, 1]                # k (v_z, c_z), k cos mu (v_x, c_x), ..
         np.subtract(self._eps, self._omega * t, out=K[:, 4])
         P = K @ W.reshape(5, 8 * nb)                                             # (I, [re | im] x B x 4)
         off = P[:, 4 * nb + 3::4]                                                # the phase offsets
         off -= TWO_PI * np.rint(off * (1.0 / TWO_PI))                            # to [-pi, pi]
         P32 = P.astype(np.float32)
         out = np.zeros((nb, 6))
-        for level, i0, i1 in self._groups:
-            level.add_sums(P32[i0:i1, :4 * nb], P32[i0:i1, 4 * nb:], out,
-                           None if point_sums is None else self._point_weights[i0:i1], point_sums)
+        weights = self._point_weights[q12]
+        for j, (level, i0, i1) in enumerate(self._groups):
+            level.add_sums(P32[i0:i1, :4 * nb], P32[i0:i1, 4 * nb:], out, weights[j], point_sums)
         return out
