@@ -34,23 +34,43 @@ def _segment(bp: Sequence[float], x: float) -> tuple[int, float]:
     return i, (x - x0) / (bp[i + 1] - x0)
 
 
+_AXES: dict = {}
+"""The axis functions by (breakpoints, clamp): tables on the same axis share one, and with it its last answer."""
+
+
 def _axis_fn(bp: Sequence[float], clamp):
-    """x -> (segment, fraction) for one axis, with the axis clamp and the end segments folded in."""
+    """x -> (segment, fraction) for one axis, with the axis clamp and the end segments folded in.
+
+    Tables with the same breakpoints and clamp share the function (:data:`_AXES`), which remembers its last input
+    object and answer: the ROM passes the same float (u, alpha, the depth ...) to several tables of an axis in one
+    evaluation, about half of its ~95 segment searches. The memory is one tuple (input, answer), replaced whole,
+    so threads sharing an axis never see one's input with another's answer."""
+    key = (tuple(float(b) for b in bp), None if clamp is None else tuple(clamp))
+    if key in _AXES:
+        return _AXES[key]
     bp = list(bp)
     n2 = len(bp) - 2
     lo, hi = clamp if clamp is not None else (None, None)
+    last = [(None, None)]
 
-    def seg(x: float, bp=bp, n2=n2, lo=lo, hi=hi, bisect=bisect_right):
+    def seg(x: float, bp=bp, n2=n2, lo=lo, hi=hi, bisect=bisect_right, last=last):
+        x_last, answer = last[0]
+        if x is x_last:
+            return answer
+        xc = x
         if lo is not None:
-            x = lo if x < lo else (hi if x > hi else x)
-        i = bisect(bp, x) - 1
+            xc = lo if x < lo else (hi if x > hi else x)
+        i = bisect(bp, xc) - 1
         if i < 0:
             i = 0
         elif i > n2:
             i = n2
         x0 = bp[i]
-        return i, (x - x0) / (bp[i + 1] - x0)
+        answer = i, (xc - x0) / (bp[i + 1] - x0)
+        last[0] = (x, answer)
+        return answer
 
+    _AXES[key] = seg
     return seg
 
 

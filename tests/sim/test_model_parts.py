@@ -65,6 +65,31 @@ def test_linear_extrapolation_and_clamp_semantics():
         LookupTable.from_dict("bad", {"axes": [{"name": "a", "breakpoints": [0, 1]}], "values": [1, 2, 3]})
 
 
+def test_tables_on_one_axis_share_its_segment_search_and_its_last_answer_is_exact():
+    """Tables with the same breakpoints and clamp share one axis function that remembers its last input object:
+    the same float passed again gets the same answer, another float (equal or not) a fresh search; a table's
+    value never depends on what another table on its axis was asked before (the hull tables on the speed axis
+    asked in an interleaved order equal each asked alone, bit for bit)."""
+    a = LookupTable.from_dict("a", {"axes": [{"name": "u", "breakpoints": [0, 1, 3], "clamp": [0, 2.5]}],
+                                    "values": [0, 10, 30]})
+    b = LookupTable.from_dict("b", {"axes": [{"name": "u", "breakpoints": [0.0, 1.0, 3.0], "clamp": [0, 2.5]}],
+                                    "values": [5, 6, 9]})
+    from bb2_sim.tables import _axis_fn
+    assert _axis_fn([0, 1, 3], [0, 2.5]) is _axis_fn([0.0, 1.0, 3.0], (0.0, 2.5))
+    assert _axis_fn([0, 1, 3], None) is not _axis_fn([0, 1, 3], [0, 2.5])
+    x = 2.9                                            # clamped to 2.5
+    assert a(x) == pytest.approx(25.0) and b(x) == pytest.approx(6 + 0.75 * 3)
+    assert a(-1.0) == 0.0 and a(x) == pytest.approx(25.0) and a(0.5) == pytest.approx(5.0)
+    T = load_tables()
+    rng = np.random.default_rng(7)
+    tabs = [t for t in T.hull.values() if len(t.breakpoints) == 2]
+    inputs = [tuple(float(v) for v in rng.uniform(-1.0, 1.0, 2) * 12) for _ in range(50)]
+    alone = [[t(*xs) for xs in inputs] for t in tabs]
+    for k, xs in enumerate(inputs):                    # interleaved: every table on the same input objects
+        for j, t in enumerate(tabs):
+            assert t(*xs) == alone[j][k], t.name
+
+
 @pytest.fixture(scope="module")
 def model():
     return BB2Model()
