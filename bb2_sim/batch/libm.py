@@ -18,13 +18,17 @@ def elementwise(fn: Callable[[float], float], a) -> np.ndarray:
     """``fn`` (a :mod:`math` function) of every element of ``a``, float64 of a's shape; NaN where fn raises
     (outside its domain, as numpy gives)."""
     a = np.asarray(a, dtype=float)
+    values = a.ravel().tolist()
+    try:
+        return np.fromiter(map(fn, values), dtype=float, count=a.size).reshape(a.shape)
+    except (ValueError, OverflowError):                    # rare (a diverging boat): element by element
 
-    def safe(v: float) -> float:
-        try:
-            return fn(v)
-        except (ValueError, OverflowError):
-            return math.nan
-    return np.fromiter(map(safe, a.ravel().tolist()), dtype=float, count=a.size).reshape(a.shape)
+        def safe(v: float) -> float:
+            try:
+                return fn(v)
+            except (ValueError, OverflowError):
+                return math.nan
+        return np.fromiter(map(safe, values), dtype=float, count=a.size).reshape(a.shape)
 
 
 def sin(a) -> np.ndarray:

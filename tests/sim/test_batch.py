@@ -289,3 +289,19 @@ def test_maneuvers_flown_together_give_each_run_maneuver_result(calm_model):
     assert batch[4].error is not None and len(batch[4].traj["t_s"]) == 0  # diverged at once, nothing logged
     assert batch[1].traj["t_s"][-1] == pytest.approx(9.0) and batch[0].traj["t_s"][-1] == pytest.approx(14.0)
     assert np.abs(batch[3].traj["eta_cg_m"]).max() > 0.1                # the sea state 5 boat's surface
+
+
+def test_the_exact_modes_transcendentals_are_the_c_librarys_element_by_element():
+    """bb2_sim.batch.libm: math's acos/atan/sin/cos of every element (numpy's AVX-512 kernels differ from them in
+    the last bit for some arguments), the array's shape kept, NaN outside the domain as numpy gives."""
+    from bb2_sim.batch import libm
+    rng = np.random.default_rng(3)
+    x = rng.uniform(-1.0, 1.0, (40, 5))
+    for ours, theirs in ((libm.arccos, math.acos), (libm.arctan, math.atan), (libm.sin, math.sin),
+                         (libm.cos, math.cos)):
+        got = ours(x)
+        assert got.shape == x.shape
+        assert got.tolist() == [[theirs(v) for v in row] for row in x.tolist()]
+    bad = libm.arccos(np.array([0.5, 1.5, -1.0, np.nan]))
+    assert bad[0] == math.acos(0.5) and math.isnan(bad[1]) and bad[2] == math.pi and math.isnan(bad[3])
+    assert math.isnan(libm.sin(np.array([np.inf]))[0])
