@@ -100,7 +100,8 @@ class _SpacingLevel:
     Every block is factorised, exp(kappa . d_n) = X1[i, n1] Y[i, (n2, n3)]: X1 on the x grid line (with the
     offset c_i), Y on the (y, z) nodes that some point's stencil touches. Blocks with more than
     ``big_factor`` times the median block's nodes (the hull) are contracted alone; the others (the control
-    planes) are padded to one shape and contracted together in batched products."""
+    planes) are padded to one shape and contracted together in batched products. ``points`` (P, 3, block 0's
+    coordinates) add P whole columns c_i exp(kappa_i . d_p), for the orbital velocities there."""
 
     def __init__(self, blocks, h: float, order: int, points: np.ndarray | None = None, big_factor: float = 3.0):
         self.h = h
