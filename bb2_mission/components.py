@@ -47,21 +47,9 @@ def stack_overrides(m: Mission) -> dict[str, Any]:
 
 
 def terrain_elevation(terrain: Terrain, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Bilinear elevation of ``terrain`` at native (x, y), NaN off the grid.
-
-    The same interpolant as :meth:`Terrain.elevation` (linear on the regular grid), without its
-    per-call overhead and without raising off the grid: the per-tick clearance check uses it.
-    """
-    gx, gy, gz = terrain.x, terrain.y, terrain.z
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    inside = (x >= gx[0]) & (x <= gx[-1]) & (y >= gy[0]) & (y <= gy[-1])
-    i = np.clip(np.searchsorted(gx, x, side="right") - 1, 0, gx.size - 2)
-    j = np.clip(np.searchsorted(gy, y, side="right") - 1, 0, gy.size - 2)
-    fx = (x - gx[i]) / (gx[i + 1] - gx[i])
-    fy = (y - gy[j]) / (gy[j + 1] - gy[j])
-    z = (gz[i, j] * (1 - fx) * (1 - fy) + gz[i + 1, j] * fx * (1 - fy) + gz[i, j + 1] * (1 - fx) * fy
-         + gz[i + 1, j + 1] * fx * fy)
-    return np.where(inside, z, np.nan)
+    """Bilinear elevation of ``terrain`` at native (x, y), NaN off the grid (:meth:`Terrain.elevation_or_nan`):
+    the per-tick clearance check uses it."""
+    return terrain.elevation_or_nan(x, y)
 
 
 class HullProbes:

@@ -185,16 +185,30 @@ def test_path_below_the_terrain_is_rejected():
 
 
 def test_fast_terrain_elevation_equals_the_planner_interpolant():
-    from bb2_planner.terrain import synthetic_canyon
+    """The terrain's bilinear interpolant (Terrain.elevation / elevation_or_nan, written out) equals scipy's
+    RegularGridInterpolator (linear) to 1e-9 m, on the grid's edges and nodes too; one point at a time (the
+    simulator's altimeter) gives each array element bit for bit; off the grid NaN, or an error from elevation."""
+    from scipy.interpolate import RegularGridInterpolator
+
     from bb2_mission import terrain_elevation
+    from bb2_planner.terrain import TerrainOutOfBoundsError, synthetic_canyon
 
     T = synthetic_canyon().terrain
+    rgi = RegularGridInterpolator((T.x, T.y), T.z, method="linear", bounds_error=False, fill_value=np.nan)
     rng = np.random.default_rng(1)
-    x = rng.uniform(T.x[0], T.x[-1], 500)
-    y = rng.uniform(T.y[0], T.y[-1], 500)
+    x = rng.uniform(T.x[0] - 20.0, T.x[-1] + 20.0, 500)
+    y = rng.uniform(T.y[0] - 20.0, T.y[-1] + 20.0, 500)
     x[:3], y[:3] = [T.x[0], T.x[-1], T.x[5]], [T.y[-1], T.y[0], T.y[7]]   # grid edges and nodes
-    assert np.allclose(terrain_elevation(T, x, y), T.elevation(x, y), rtol=0, atol=1e-9)
-    assert np.isnan(terrain_elevation(T, np.array([T.x[0] - 1.0]), np.array([0.0])))[0]
+    z = terrain_elevation(T, x, y)
+    ref = rgi(np.column_stack([x, y]))
+    assert np.array_equal(np.isnan(z), np.isnan(ref)) and np.isnan(z).sum() > 10
+    assert np.allclose(z, ref, rtol=0, atol=1e-9, equal_nan=True)
+    one = [float(T.elevation_or_nan(a, b)) for a, b in zip(x.tolist(), y.tolist())]
+    assert np.array_equal(one, z, equal_nan=True)
+    inside = ~np.isnan(z)
+    assert np.array_equal(T.elevation(x[inside], y[inside]), z[inside])
+    with pytest.raises(TerrainOutOfBoundsError):
+        T.elevation(T.x[0] - 1.0, 0.0)
 
 
 def test_initial_position_below_the_terrain_is_rejected():
