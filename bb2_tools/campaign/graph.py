@@ -4,8 +4,9 @@
 The run's mission document is written to ``GRAPH_DIR/<index>/mission.yaml`` and the launcher runs with the
 original mission's directory as its working directory (so the mission's relative files are found through the
 schema's working-directory fallback); the bag goes to ``GRAPH_DIR/<index>/bag`` and the analysis to
-``GRAPH_DIR/<index>/analysis``.  The domain is ``1 + index % 101`` (the runs in flight are a small window of
-consecutive indices).  This module starts subprocesses only; it imports no ROS itself.
+``GRAPH_DIR/<index>/analysis``.  Each run's ``bb2-launch`` claims a free domain itself (lock files shared by every
+launch on the machine), so runs in flight never share one with each other or with any other launch.  This module
+starts subprocesses only; it imports no ROS itself.
 """
 from __future__ import annotations
 
@@ -21,11 +22,7 @@ import yaml
 from bb2_tools.campaign.figures import END_STATUS, _mission_catalogue, json_safe
 from bb2_tools.campaign.spec import CampaignSpec
 
-__all__ = ["graph_figures", "run_graph_once", "domain_for"]
-
-
-def domain_for(index: int) -> int:
-    return 1 + int(index) % 101
+__all__ = ["graph_figures", "run_graph_once"]
 
 
 def graph_figures(figures_json: Path, names: tuple[str, ...]) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -58,8 +55,8 @@ def run_graph_once(spec: CampaignSpec, index: int, doc: dict[str, Any], graph_di
     env.pop("ROS_DOMAIN_ID", None)
     bag = run / "bag"
     launch = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--mode", "lockstep",
-                             "--out", str(bag), "--domain-id", str(domain_for(index)), "--timeout",
-                             str(timeout_s)], cwd=cwd, env=env, capture_output=True, text=True,
+                             "--out", str(bag), "--timeout", str(timeout_s)], cwd=cwd, env=env,
+                            capture_output=True, text=True,
                             timeout=timeout_s + 120)
     (run / "launch.log").write_text((launch.stdout or "") + (launch.stderr or ""))
     figures: dict[str, Any] = {n: None for n in spec.collect}

@@ -395,8 +395,19 @@ def test_graph_runs_fly_the_ros_graph_and_equal_the_library_runner(tmp_path):
            "collect": ["rms_vertical", "rms_horizontal", "max_vertical_m", "mission_time_s", "end_reason",
                        "completed"]}
     f = _write_spec(tmp_path / "g.yaml", doc)
-    r = _campaign(str(f), "--out", str(tmp_path / "g"), "--graph", "--workers", "2", timeout=400)
+    # another launch of this machine holds domains 1 and 2 (the campaign once took 1 + index: run 0 recorded a
+    # concurrent test's 90 s canyon): each run's bb2-launch claims a free domain of its own
+    from bb2_tools.graph_monitor import claim_domain
+    held = [fd for fd in (claim_domain(1), claim_domain(2)) if fd is not None]
+    try:
+        r = _campaign(str(f), "--out", str(tmp_path / "g"), "--graph", "--workers", "2", timeout=400)
+    finally:
+        for fd in held:
+            os.close(fd)
     assert r.returncode == 0, r.stderr
+    for log in sorted((tmp_path / "g" / "graph").glob("*/launch.log")):
+        text = log.read_text()
+        assert "another bb2-launch runs" not in text and "ROS_DOMAIN_ID=1 |" not in text, text[:600]
     rows = sorted(_table(tmp_path / "g").to_pylist(), key=lambda row: row["index"])
     spec = parse_spec(doc)
     assert [row["status"] for row in rows] == ["ok", "grounded"], [row["message"] for row in rows]
