@@ -40,8 +40,10 @@ STEP_TOPICS = ("/bb2/imu", "/bb2/planes/state", "/bb2/propeller/state")
 
 
 def _run_stopping_the_recorder(mission: Path, out: Path, *extra: str) -> tuple[int, str]:
-    """bb2-launch the mission; once it steps, SIGSTOP its recorder for 5 s; (exit code, everything it printed)."""
-    return launch_with_fault(mission, out, *extra, fault=lambda: _stop_for(node_pid("recorder", f"--out {out} "), 5.0))
+    """bb2-launch the mission; once it has stepped 10 s (mid-run, past the start-up handshake), SIGSTOP its
+    recorder for 5 s; (exit code, everything it printed)."""
+    return launch_with_fault(mission, out, *extra, min_sim_s=10.0,
+                             fault=lambda: _stop_for(node_pid("recorder", f"--out {out} "), 5.0))
 
 
 def _stop_for(pid: int, seconds: float) -> None:
