@@ -118,9 +118,9 @@ class Terrain:
 
     def elevation_or_nan(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         """Bilinear elevation z(x, y) [m], NaN off the grid: the interpolant of ``RegularGridInterpolator``
-        (linear) written out element by element, without its per-call overhead (~15 us against ~60 us for a
-        point; the simulator and the mission runner ask it every step). A point's value does not depend on the
-        other points asked with it."""
+        (linear) written out element by element, without its per-call overhead (one point, as the simulator's
+        altimeter asks every step: a clearance in ~8 us against ~35 us through scipy). A point's value does not
+        depend on the other points asked with it."""
         gx, gy, gz = self.x, self.y, self.z
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         if x.ndim == 0:                       # one point: the same arithmetic on Python floats (bit for bit)

@@ -207,8 +207,8 @@ def test_a_recorder_stopped_early_loses_the_rest_of_the_run_and_that_is_said(tmp
     mission = tmp_path / "straight_rt.yaml"
     mission.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: straight_rt\nduration_s: 60\n")
     params = tmp_path / "fast.yaml"
-    # 5x real time: 12 s of wall time; the launcher's status line (every 5 s of wall time, 25 s of sim) that
-    # triggers the stop comes at a sim time of 5 s to ~30 s, which leaves half the run to lose
+    # 5x real time: 12 s of wall time; the launcher's status line (every 0.5 s of wall time, 2.5 s of sim, as the
+    # fault tests ask) that triggers the stop comes at a sim time of 5 s to ~8 s, which leaves most of the run to lose
     params.write_text("simulator:\n  ros__parameters:\n    rate_hz: 100.0\n")
     out = tmp_path / "rt"
     code, err = launch_with_fault(
