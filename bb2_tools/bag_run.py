@@ -335,6 +335,9 @@ def _where(g: Gap) -> str:
                 f" (its publishers counted {g.before_sequence}; the bag ends at t = {g.before_log_s:.3f} s)")
     if g.head:
         return f"the first {g.missing}, before t = {g.before_log_s:.3f} s"
+    if f"{g.after_log_s:.3f}" == f"{g.before_log_s:.3f}":  # a stalled recorder logged both at its resume time
+        return (f"{g.missing} at t = {g.after_log_s:.3f} s of log time (the recorder's clock stood still meanwhile; "
+                f"published over {g.duration_s:.3f} s of wall time)")
     return (f"{g.missing} between t = {g.after_log_s:.3f} s and {g.before_log_s:.3f} s (published over "
             f"{g.duration_s:.3f} s of wall time)")
 

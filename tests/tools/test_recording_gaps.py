@@ -155,14 +155,20 @@ def test_realtime_recorder_stopped_5_s_the_gap_is_in_the_metadata_the_launcher_a
                        env=ros_env(), timeout=300, cwd=tmp_path)
     assert a.returncode == 0, a.stderr[-2000:]
     warn = [ln for ln in a.stdout.splitlines() if f"recording gap(s) on {topic}" in ln]
-    # bb2-analyze reads the state from /bb2/state_native, so the odometry's gap does not touch its figures (beside
-    # two CPU hogs /bb2/odom once lost most: 405 messages)
+    # bb2-analyze reads the state from /bb2/state_native, so a gap on the odometry or the depth does not touch its
+    # figures (beside two CPU hogs /bb2/odom once lost most, 405 messages; in a CI run /bb2/depth, 404)
+    from bb2_tools.bag_run import USED_TOPICS
+
     said = ("the figures are affected" if topic == "/bb2/state_native" else
-            "not used by the figures: they are not affected" if topic == "/bb2/odom" else
-            f"figures from {topic} are affected")
+            f"figures from {topic} are affected" if topic in USED_TOPICS and topic != "/bb2/odom" else
+            "not used by the figures: they are not affected")
     assert len(warn) == 1 and said in warn[0], a.stdout[-3000:]
     g = gaps[0]
-    assert f"{g['missing']} between t = {g['after_log_s']:.3f} s" in warn[0], (warn, g)
+    # log times: the recorder's receive times; when its clock stood still over the gap, one time is said
+    where = (f"{g['missing']} at t = {g['after_log_s']:.3f} s of log time"
+             if f"{g['after_log_s']:.3f}" == f"{g['before_log_s']:.3f}" else
+             f"{g['missing']} between t = {g['after_log_s']:.3f} s and {g['before_log_s']:.3f} s")
+    assert where in warn[0], (warn, g)
 
 
 @pytest.mark.parametrize("mode", ["lockstep", "realtime"])
@@ -244,3 +250,25 @@ def test_a_recorder_stopped_early_loses_the_rest_of_the_run_and_that_is_said(tmp
     warn = [ln for ln in a.stdout.splitlines() if "recording gap(s) on /bb2/state_native" in ln]
     assert len(warn) == 1 and "the figures are affected" in warn[0], a.stdout[-3000:]
     assert f"{unrec[0].missing} published and never recorded, after t = {line[3]}" in warn[0], warn
+
+
+def test_gap_warnings_say_which_figures_a_gap_touches_and_where_it_is_in_log_time():
+    """bb2-analyze's gap warning: the state topic affects every figure, another topic it reads affects its own,
+    a topic it does not read none; a gap logged at one time (a stalled recorder whose clock stood still) is said
+    at that time, not 'between t and t'."""
+    from bb2_tools.bag_run import gap_warnings
+    from bb2_tools.bagfile import Gap
+
+    stalled = Gap("/bb2/depth", 404, 1240, 1645, 12.4, 12.4, after_publish_s=100.0, before_publish_s=104.051)
+    moving = Gap("/bb2/state_native", 7, 10, 18, 0.1, 0.18, after_publish_s=100.0, before_publish_s=100.5)
+    rate = Gap("/bb2/guidance/rate_cmd", 3, 10, 14, 0.1, 0.14)
+    w = gap_warnings([stalled, moving, rate], state_topic="/bb2/state_native",
+                     used=["/bb2/state_native", "/bb2/guidance/rate_cmd"])
+    by = {ln.split(":", 1)[0]: ln for ln in w}
+    assert len(w) == 3, w
+    assert "not used by the figures" in by["recording gap(s) on /bb2/depth"]
+    assert "404 at t = 12.400 s of log time" in by["recording gap(s) on /bb2/depth"]
+    assert "published over 4.051 s of wall time" in by["recording gap(s) on /bb2/depth"]
+    assert "the figures are affected" in by["recording gap(s) on /bb2/state_native"]
+    assert "7 between t = 0.100 s and 0.180 s" in by["recording gap(s) on /bb2/state_native"]
+    assert "figures from /bb2/guidance/rate_cmd are affected" in by["recording gap(s) on /bb2/guidance/rate_cmd"]
