@@ -18,8 +18,11 @@ component's local pressure (order 3; up to 0.042 (|kappa_a| h)^4 next to the end
 the wavelength: every component i uses the coarsest spacing h of ``spacings_m`` with k_i h <= ``max_kh`` (the
 finest if none), and the components sharing a spacing share its grids (``sea_spectra.yaml`` ->
 ``wave_load_grid``). Long waves, most of a sea's energy, need few nodes: a 64-component JONSWAP sea puts about
-50 of them on the 6 m grid, where a control plane's block is 4 x 4 x 4 nodes and the hull's 14 x 20 used;
-the orbital velocities at the model's flow points are a few more columns of the same exponentials.
+50 of them on the 6 m grid, where the hull's block is 14 x 20 nodes used; the orbital velocities at the model's
+flow points are a few more columns of the same exponentials. An axis shorter than the spacing (a control
+plane's chord, span and thickness) takes the lowest degree whose error bound for the level's wavenumbers stays
+within degree ``order``'s at spacing h (:func:`axis_plan`): on the 6 m grid an X plane's block is 3 x 3 x 3
+nodes (quadratic), the rudder's thickness linear.
 
 Every block's grid is factorised, exp(kappa . d_n) = X1[i, n1] Y[i, (n2, n3)] with X1 the x grid line (carrying
 c_i) and Y the (y, z) nodes that any point's stencil touches; the node sums are one real matrix product
@@ -40,6 +43,8 @@ hydrostatic part stays exact (pressure integrator moments); this is only the dyn
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .components import WaveComponents
@@ -59,29 +64,63 @@ def _lagrange_weights(u: np.ndarray, order: int) -> np.ndarray:
     return W
 
 
+def _error_constant(p: int) -> float:
+    """max over a stencil's end cell of |prod_{r=0..p} (u - r)| / (p + 1)!: the interpolation error of degree p at
+    node spacing s is about this times (k s)^(p+1) of a component's local pressure (p = 3: 0.042)."""
+    u = np.linspace(0.0, 1.0, 2001)
+    return float(np.abs(np.prod([u - r for r in range(p + 1)], axis=0)).max() / math.factorial(p + 1))
+
+
+_C_END = {p: _error_constant(p) for p in range(1, 8)}
+
+
+def axis_plan(extent: float, h: float, order: int, k_design: float | None = None) -> tuple[int, int]:
+    """(degree, cells) of one grid axis of the given extent (m): degree ``order`` on n = max(order, ceil(extent /
+    h) + 1) cells (spacing below h) -- unless, for the wavenumbers up to ``k_design`` (rad/m), a lower degree on
+    fewer nodes interpolates as well as degree ``order`` at spacing h does (error C_p (k s)^(p+1) <=
+    C_order (k h)^(order+1)): the thin and short axes of the control planes, where a few metres of a long wave
+    are nearly linear."""
+    n_default = max(order, math.ceil(extent / h - 1e-9) + 1)
+    best = (order, n_default)
+    if not k_design or not k_design > 0:
+        return best
+    tol = _C_END[order] * (k_design * h) ** (order + 1)
+    for p in range(order - 1, 0, -1):
+        for n in range(p, best[1]):                                   # fewer nodes than the best so far
+            s = extent / n if extent > 0 else h
+            if _C_END[p] * (k_design * s) ** (p + 1) <= tol:
+                best = (p, n)
+                break
+    return best
+
+
 class _BlockGrid:
     """Q_b[n] = sum_j L_n(d_j) FM_j on the regular grid of one block, spacing at most h per axis (only the nodes
-    used)."""
+    used); per axis the degree and cells of :func:`axis_plan` (``degrees``)."""
 
-    def __init__(self, d: np.ndarray, FM: np.ndarray, h: float, order: int):
+    def __init__(self, d: np.ndarray, FM: np.ndarray, h: float, order: int, k_design: float | None = None):
         # the grid spans the block's bounding box: per axis n = max(order, ceil(extent / h) + 1) cells of
-        # extent / n < h, each point's stencil centred on its cell except in the cells next to the ends
+        # extent / n < h (or fewer of a lower degree, see axis_plan), each point's stencil centred on its cell
+        # except in the cells next to the ends
         lo_m, ext = d.min(axis=0), np.ptp(d, axis=0)
-        ncell = np.maximum(order, np.ceil(ext / h - 1e-9) + 1).astype(np.int64)
+        plans = [axis_plan(float(e), h, order, k_design) for e in ext]
+        deg = np.array([p for p, _ in plans], dtype=np.int64)
+        ncell = np.array([n for _, n in plans], dtype=np.int64)
         hs = np.where(ext > 0, ext / ncell, h)                       # (3,) m
         t = (d - lo_m) / hs
-        base = np.clip(np.floor(t).astype(np.int64) - (order - 1) // 2, 0, ncell - order)  # first stencil node
+        base = np.clip(np.floor(t).astype(np.int64) - (deg - 1) // 2, 0, ncell - deg)  # first stencil node
         self.shape = tuple(int(n) + 1 for n in ncell)
+        self.degrees = tuple(int(p) for p in deg)
         self.g0 = lo_m                                                # (3,) m
         self.h = hs
         rel = base
         u = t - base
-        Wax = [_lagrange_weights(u[:, a], order) for a in range(3)]  # (n, order+1) each
+        Wax = [_lagrange_weights(u[:, a], int(deg[a])) for a in range(3)]  # (n, degree+1) each
         n1, n2, n3 = self.shape
         flat_idx = np.zeros((len(d), 1), dtype=np.int64)
         weight = np.ones((len(d), 1))
         for a, stride in enumerate((n2 * n3, n3, 1)):
-            idx_a = (rel[:, a][:, None] + np.arange(order + 1)) * stride
+            idx_a = (rel[:, a][:, None] + np.arange(deg[a] + 1)) * stride
             flat_idx = (flat_idx[:, :, None] + idx_a[:, None, :]).reshape(len(d), -1)
             weight = (weight[:, :, None] * Wax[a][:, None, :]).reshape(len(d), -1)
         size = n1 * n2 * n3
@@ -103,9 +142,10 @@ class _SpacingLevel:
     planes) are padded to one shape and contracted together in batched products. ``points`` (P, 3, block 0's
     coordinates) add P whole columns c_i exp(kappa_i . d_p), for the orbital velocities there."""
 
-    def __init__(self, blocks, h: float, order: int, points: np.ndarray | None = None, big_factor: float = 3.0):
+    def __init__(self, blocks, h: float, order: int, points: np.ndarray | None = None, big_factor: float = 3.0,
+                 k_design: float | None = None):
         self.h = h
-        self.grids = [_BlockGrid(d, FM, h, order) for d, FM in blocks]
+        self.grids = [_BlockGrid(d, FM, h, order, k_design) for d, FM in blocks]
         nb = len(blocks)
         keep = [np.flatnonzero(g.used.any(axis=0)) for g in self.grids]
         size = [g.shape[0] * len(keep[b]) for b, g in enumerate(self.grids)]
@@ -209,14 +249,16 @@ class WavePressureGrid:
         self._blocks = blocks
         self.n_blocks = len(blocks)
         self.points = None if points is None else np.array(points, dtype=float).reshape(-1, 3)
-        self._levels: dict[float, _SpacingLevel] = {}
+        self._levels: dict[tuple[float, float | None], _SpacingLevel] = {}
         self._comps: WaveComponents | None = None
 
-    def level(self, h: float) -> _SpacingLevel:
-        """The grids at spacing h (built on first use)."""
-        if h not in self._levels:
-            self._levels[h] = _SpacingLevel(self._blocks, h, self.order, self.points)
-        return self._levels[h]
+    def level(self, h: float, k_design: float | None = None) -> _SpacingLevel:
+        """The grids at spacing h for wavenumbers up to k_design (rad/m; None: every axis of degree ``order``),
+        built on first use."""
+        key = (h, k_design)
+        if key not in self._levels:
+            self._levels[key] = _SpacingLevel(self._blocks, h, self.order, self.points, k_design=k_design)
+        return self._levels[key]
 
     def spacing_of(self, k: np.ndarray) -> np.ndarray:
         """The spacing (m) each wavenumber k (rad/m) uses: the coarsest with k h <= max_kh, else the finest."""
@@ -231,8 +273,12 @@ class WavePressureGrid:
             h = self.spacing_of(k)
             order = np.argsort(-h, kind="stable")                         # coarse levels first
             hs = h[order]
-            self._groups = [(self.level(float(s)), int(np.argmax(hs == s)), int(len(hs) - np.argmax(hs[::-1] == s)))
-                            for s in np.unique(hs)[::-1]]
+            bounds = [(float(s), int(np.argmax(hs == s)), int(len(hs) - np.argmax(hs[::-1] == s)))
+                      for s in np.unique(hs)[::-1]]
+            # each level's grids are planned for the largest wavenumber among its components, at most max_kh / h
+            # (the finest level's shorter waves get the hull's larger error, not every block's)
+            self._groups = [(self.level(s, min(float(k[order][i0:i1].max()), self.max_kh / s)), i0, i1)
+                            for s, i0, i1 in bounds]
             mu = comps.direction[order]
             # per component [k, k cos mu, k sin mu, ln a, eps - omega t]: P = K @ W gives every block's
             # exponent parameters, real [k v_z, k c_z + ln a] and imaginary [k (cos mu v_x + sin mu v_y),

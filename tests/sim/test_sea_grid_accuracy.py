@@ -109,6 +109,36 @@ def test_block_grid_spans_the_block_and_is_exact_for_polynomials_of_its_order(h)
         np.testing.assert_allclose(on_grid, FM.T @ _cubics(c, *d.T), rtol=1e-9, atol=1e-9 * np.abs(FM).sum())
 
 
+def test_thin_and_short_axes_take_a_lower_degree_that_interpolates_as_well_and_stays_exact_for_it():
+    """For the wavenumbers up to k_design, an axis shorter than the spacing takes the lowest degree (and fewest
+    nodes) whose interpolation error bound C_p (k s)^(p+1) stays within degree 3's at spacing h: a control plane's
+    0.35 m thickness is linear (2 nodes, not 4), its 3.2 m chord quadratic on the 6 m grid; the hull's axes keep
+    degree 3. The weights reproduce products of per-axis polynomials of each axis's degree exactly."""
+    from bb2_sim.sea.pressure_grid import _C_END, _BlockGrid, axis_plan
+
+    h, k = 6.0, 0.5 / 6.0
+    assert axis_plan(0.351, h, 3, k) == (1, 1) and axis_plan(3.218, h, 3, k) == (2, 2)
+    assert axis_plan(69.9, h, 3, k) == axis_plan(69.9, h, 3) == (3, 13)      # the hull's length: unchanged
+    assert axis_plan(0.351, 1.5, 3) == (3, 3)                                # no k_design: degree 3 everywhere
+    for e in np.linspace(0.0, 40.0, 81):
+        p, n = axis_plan(e, h, 3, k)
+        assert p == 3 or _C_END[p] * (k * e / n) ** (p + 1) <= _C_END[3] * (k * h) ** 4, (e, p, n)
+    rng = np.random.default_rng(8)
+    d = rng.uniform(0.0, 1.0, (400, 3)) * [3.2, 8.4, 0.35] + (-1.0, -4.2, 0.3)
+    FM = rng.normal(size=(400, 6))
+    g = _BlockGrid(d, FM, h, order=3, k_design=k)
+    assert g.degrees == (2, 3, 1) and g.shape == (3, 4, 2), (g.degrees, g.shape)
+    c = rng.normal(size=(3, 4)) * (np.arange(4) >= 3 - np.array(g.degrees)[:, None])   # degree <= the axis's
+    X, Y, Z = np.meshgrid(*g.nodes, indexing="ij")
+    on_grid = np.einsum("nm,n->m", g.Q.reshape(-1, 6), _cubics(c, X, Y, Z).reshape(-1))
+    np.testing.assert_allclose(on_grid, FM.T @ _cubics(c, *d.T), rtol=1e-9, atol=1e-9 * np.abs(FM).sum())
+    def across(z):                                                   # a quadratic across the linear axis is not
+        return ((z - 0.475) / 0.35) ** 2
+
+    on_grid = np.einsum("nm,n->m", g.Q.reshape(-1, 6), across(Z).reshape(-1))
+    assert np.abs(on_grid - FM.T @ across(d[:, 2])).max() > 1e-3 * np.abs(FM.T @ across(d[:, 2])).max()
+
+
 def _cubics(c: np.ndarray, x, y, z):
     return np.polyval(c[0], x / 10) * np.polyval(c[1], y / 10) * np.polyval(c[2], z / 10)
 
