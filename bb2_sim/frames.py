@@ -70,9 +70,13 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         a0, a1, a2 = a
         b0, b1, b2 = b
         return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+    # [a1 b2 - a2 b1, a2 b0 - a0 b2, a0 b1 - a1 b0] with the components permuted: the same products and
+    # differences element by element (bit for bit the written-out formula), in seven numpy calls instead of seventeen
+    return a[..., _I120] * b[..., _I201] - a[..., _I201] * b[..., _I120]
+
+
+_I120 = np.array([1, 2, 0])
+_I201 = np.array([2, 0, 1])
 
 
 def body_native_to_flu(v_native: np.ndarray) -> np.ndarray:

@@ -33,7 +33,8 @@ The exponents of all grid lines and nodes of a spacing are one matrix product of
 parameters with a fixed coefficient matrix, and everything from that product to the node sums runs in single
 precision (numpy's vectorised float32 kernels: cos/sin about 15 times, exp about 4 times faster than float64
 here, the products half the cost): the parameters are formed in double precision and the phase offsets (which
-grow with time and distance) reduced to [-pi, pi] there, so that a float32 exponent only adds a grid node's
+grow with time and distance) reduced modulo 2 pi there (fmod, without rounding), so that a float32 exponent only
+adds a grid node's
 kappa . d, at most k times the hull's length (about 15 rad): an error of about 1e-6 of a component's pressure,
 far below the interpolation error. A node's value is the product of two factors (x line, (y, z) node) summed
 over 2 I terms, so each factor's exponent is capped at 40 (twice 40 plus ln(2 I) stays below float32's
@@ -153,31 +154,46 @@ class _SpacingLevel:
         small = [b for b in range(nb) if b not in big]
         n1p = max((self.grids[b].shape[0] for b in small), default=0)
         n23p = max((len(keep[b]) for b in small), default=0)
-        cols = []                      # (block, x or None, (y, z) or None, with offset) per exponent column
+        cols = []                      # (block, x or None, (y, z) or None) per exponent column
 
-        def block_columns(b, n1, n23):
+        def x_columns(b, n1):
+            g = self.grids[b]
+            cols.extend((b, x, None) for x in g.nodes[0])
+            cols.extend((b, None, None) for _ in range(n1 - g.shape[0]))     # padding: exponent 0, Q 0
+
+        def yz_columns(b, n23):
             g = self.grids[b]
             y, z = np.meshgrid(g.nodes[1], g.nodes[2], indexing="ij")
             yz = np.column_stack([y.ravel(), z.ravel()])[keep[b]]
-            cols.extend((b, x, None) for x in g.nodes[0])
-            cols.extend((b, None, None) for _ in range(n1 - g.shape[0]))     # padding: exponent 0, Q 0
             cols.extend((b, None, p) for p in yz)
             cols.extend((b, None, None) for _ in range(n23 - len(yz)))
 
         self.big = []                  # (block, x columns, (y, z) columns, Q^T (6, n1 n23))
         for b in big:
             g, x0 = self.grids[b], len(cols)
-            block_columns(b, g.shape[0], len(keep[b]))
+            x_columns(b, g.shape[0])
+            yz_columns(b, len(keep[b]))
             self.big.append((b, slice(x0, x0 + g.shape[0]), slice(x0 + g.shape[0], len(cols)),
                              np.ascontiguousarray(g.Q[:, keep[b], :].reshape(-1, 6).T)))
-        self.small_start, self.small, self.n1p = len(cols), np.array(small, dtype=np.int64), n1p
-        QTs = np.zeros((len(small), 6, n1p, n23p))
+        # the small blocks' x lines side by side, then their (y, z) nodes: one product X1^T Y of all of them,
+        # whose diagonal blocks are each block's node sums
+        ns = len(small)
+        self.n_small, self.n1p, self.n23p = ns, n1p, n23p
+        x0 = len(cols)
+        for b in small:
+            x_columns(b, n1p)
+        y0 = len(cols)
+        for b in small:
+            yz_columns(b, n23p)
+        self.small_x, self.small_yz = slice(x0, y0), slice(y0, len(cols))
+        self.small_rows = (slice(small[0], small[-1] + 1) if small and small == list(range(small[0], small[-1] + 1))
+                           else np.array(small, dtype=np.int64))
+        self._diag = np.arange(ns)
+        QTs = np.zeros((ns, 6, n1p, n23p))
         for s_, b in enumerate(small):
             g = self.grids[b]
-            block_columns(b, n1p, n23p)
             QTs[s_, :, :g.shape[0], :len(keep[b])] = g.Q[:, keep[b], :].transpose(2, 0, 1)
-        self.QTs = QTs.reshape(len(small), 6, n1p * n23p)
-        self.small_end = len(cols)
+        self.QTs = QTs.reshape(ns, 6, n1p * n23p)
         pts = np.zeros((0, 3)) if points is None else np.asarray(points, dtype=float)
         self.points = slice(len(cols), len(cols) + len(pts))      # exp(kappa . d_p + offset) of block 0, whole
         C_re, C_im = np.zeros((4 * nb, len(cols) + len(pts))), np.zeros((4 * nb, len(cols) + len(pts)))
@@ -195,39 +211,20 @@ class _SpacingLevel:
         self.C_re, self.C_im = C_re.astype(np.float32), C_im.astype(np.float32)
         self.n_cols = C_re.shape[1]
 
-    def _buffers(self, ni: int):
-        """Work arrays for ni components (kept: fresh temporaries of this size cost page faults each call)."""
-        if getattr(self, "_buf_n", None) != ni:
-            m = self.n_cols
-            self._EI, self._ER = np.empty((ni, m), np.float32), np.empty((ni, m), np.float32)
-            self._T = np.empty((ni, m), np.float32)
-            self._X = np.empty((2 * ni, m), np.float32)
-            self._buf_n = ni
-        return self._EI, self._ER, self._T, self._X
-
-    def add_sums(self, P_re: np.ndarray, P_im: np.ndarray, out: np.ndarray, point_weights: np.ndarray | None = None,
+    def contract(self, X: np.ndarray, out: np.ndarray, point_weights: np.ndarray | None = None,
                  point_sums: np.ndarray | None = None) -> None:
-        """out (B, 6) += the sums of this level's components (P_* (I, 4 B) float32 rows of kappa and offsets,
-        the imaginary offsets reduced to [-pi, pi]); point_sums (P, K) += [Re X_p; Im X_p]^T point_weights
+        """out (B, 6) += the blocks' sums from X (2 I, M) = [Re; Im] of this level's exponentials (the
+        components' c_i exp(kappa_i . node), float32); point_sums (P, K) += [Re X_p; Im X_p]^T point_weights
         (2 I, K), X_p the components' values at the points."""
-        ni = len(P_re)
-        EI, ER, T, X = self._buffers(ni)
-        np.matmul(P_im, self.C_im, out=EI)                                   # (I, M) phases
-        np.matmul(P_re, self.C_re, out=ER)                                   # (I, M) decay exponents
-        np.minimum(ER, EXP_CAP, out=ER)
-        np.exp(ER, out=ER)
-        np.cos(EI, out=T)
-        np.multiply(ER, T, out=X[:ni])
-        np.sin(EI, out=T)
-        np.multiply(ER, T, out=X[ni:])
         for b, xs, ys, QT in self.big:
             node = X[:, xs].T @ X[:, ys]                                     # (n1, n23) = Re(X1^T Y)
             out[b] += QT @ node.ravel().astype(np.float64)
-        ns = len(self.small)
+        ns = self.n_small
         if ns:
-            Xs = X[:, self.small_start:self.small_end].reshape(2 * ni, ns, -1)
-            node = Xs[:, :, :self.n1p].transpose(1, 2, 0) @ Xs[:, :, self.n1p:].transpose(1, 0, 2)
-            out[self.small] += (self.QTs @ node.reshape(ns, -1, 1).astype(np.float64))[:, :, 0]
+            node = X[:, self.small_x].T @ X[:, self.small_yz]                # (ns n1p, ns n23p), all pairs
+            d = self._diag
+            node = node.reshape(ns, self.n1p, ns, self.n23p)[d, :, d, :]     # (ns, n1p, n23p): each block's
+            out[self.small_rows] += (self.QTs @ node.reshape(ns, -1, 1).astype(np.float64))[:, :, 0]
         if point_sums is not None:
             point_sums += X[:, self.points].T @ point_weights
 
@@ -294,6 +291,17 @@ class WavePressureGrid:
             by_phase = {False: (horizontal, vertical), True: (-vertical, horizontal)}
             self._point_weights = {q12: [np.concatenate([a[i0:i1], b[i0:i1]]).astype(np.float32)
                                          for _, i0, i1 in self._groups] for q12, (a, b) in by_phase.items()}
+            # work arrays (kept: fresh temporaries of this size cost page faults each call): each level's (I, M)
+            # exponents and [Re; Im] values
+            sizes = [(i1 - i0, level.n_cols) for level, i0, i1 in self._groups]
+            total = sum(ni * m for ni, m in sizes)
+            ER, EI, T = (np.empty(total, np.float32) for _ in range(3))
+            parts, o = [], 0
+            for ni, m in sizes:
+                parts.append(tuple(a[o:o + ni * m].reshape(ni, m) for a in (ER, EI, T)) +
+                             (np.empty((2 * ni, m), np.float32),))
+                o += ni * m
+            self._work = (ER, EI, T, parts)
             nb = self.n_blocks
             self._W = np.zeros((5, 2, nb, 4))
             self._W[3, 0, :, 3] = 1.0
@@ -323,10 +331,23 @@ class WavePressureGrid:
         np.subtract(self._eps, self._omega * t, out=K[:, 4])
         P = K @ W.reshape(5, 8 * nb)                                             # (I, [re | im] x B x 4)
         off = P[:, 4 * nb + 3::4]                                                # the phase offsets
-        off -= TWO_PI * np.rint(off * (1.0 / TWO_PI))                            # to [-pi, pi]
+        np.fmod(off, TWO_PI, out=off)                                            # to (-2 pi, 2 pi), unrounded
         P32 = P.astype(np.float32)
+        # every level's exponents in one work array, so that the element-wise functions run once over all
+        ER, EI, T, parts = self._work
+        for (level, i0, i1), (er, ei, _, _) in zip(self._groups, parts):
+            np.matmul(P32[i0:i1, :4 * nb], level.C_re, out=er)                  # (I, M) decay exponents
+            np.matmul(P32[i0:i1, 4 * nb:], level.C_im, out=ei)                  # (I, M) phases
+        np.minimum(ER, EXP_CAP, out=ER)
+        np.exp(ER, out=ER)
+        np.cos(EI, out=T)
+        for er, _, t_, X in parts:
+            np.multiply(er, t_, out=X[:len(er)])
+        np.sin(EI, out=T)
+        for er, _, t_, X in parts:
+            np.multiply(er, t_, out=X[len(er):])
         out = np.zeros((nb, 6))
         weights = self._point_weights[q12]
-        for j, (level, i0, i1) in enumerate(self._groups):
-            level.add_sums(P32[i0:i1, :4 * nb], P32[i0:i1, 4 * nb:], out, weights[j], point_sums)
+        for j, ((level, _, _), (_, _, _, X)) in enumerate(zip(self._groups, parts)):
+            level.contract(X, out, weights[j], point_sums)
         return out

@@ -71,7 +71,7 @@ def test_grid_wave_loads_stay_finite_where_k_z_passes_float32s_exp_range():
 
 def test_grid_wave_loads_keep_their_accuracy_far_away_and_late():
     """The grid forms its exponents in float32 after reducing the phase offsets (k x - omega t, thousands of
-    rad after an hour or 10 km) to [-pi, pi] in double precision: a boat 120 km out after 100 hours gets the
+    rad after an hour or 10 km) modulo 2 pi in double precision: a boat 120 km out after 100 hours gets the
     accuracy of one at the origin at t = 0, 5e-4 of a load's range here (float32 phases of ~1e6 rad would be off
     by up to 0.06 rad: 8e-3 without the reduction)."""
     sea = ComponentSea(discretise(JonswapSpectrum(3.25, 9.7), 64, seed=5, spreading=Cos2sSpreading(0.5, 4.0),
