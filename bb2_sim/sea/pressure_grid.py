@@ -39,8 +39,10 @@ kappa . d, at most k times the hull's length (about 15 rad): an error of about 1
 far below the interpolation error. A node's value is the product of two factors (x line, (y, z) node) summed
 over 2 I terms, so each factor's exponent is capped at 40 (twice 40 plus ln(2 I) stays below float32's
 overflow at 88.7); no point of a hull in a sea comes near k z = 40 (100 m above the surface for a 15 m wave).
-The node sums are contracted with the weights Q in double precision. The
-hydrostatic part stays exact (pressure integrator moments); this is only the dynamic part.
+The node sums are contracted with the weights Q in single precision too, each block's six sums added up in double:
+the hull's sums cancel little (the sum of |Q node| is 2 to 600 times the result; measured here, 3e-6 of the roll
+moment on the 6 m grid, 2e-7 of the loads on the 1.5 m grid). The hydrostatic part stays exact (pressure
+integrator moments); this is only the dynamic part.
 """
 from __future__ import annotations
 
@@ -174,7 +176,7 @@ class _SpacingLevel:
             x_columns(b, g.shape[0])
             yz_columns(b, len(keep[b]))
             self.big.append((b, slice(x0, x0 + g.shape[0]), slice(x0 + g.shape[0], len(cols)),
-                             np.ascontiguousarray(g.Q[:, keep[b], :].reshape(-1, 6).T)))
+                             np.ascontiguousarray(g.Q[:, keep[b], :].reshape(-1, 6).T, dtype=np.float32)))
         # the small blocks' x lines side by side, then their (y, z) nodes: one product X1^T Y of all of them,
         # whose diagonal blocks are each block's node sums
         ns = len(small)
@@ -193,7 +195,7 @@ class _SpacingLevel:
         for s_, b in enumerate(small):
             g = self.grids[b]
             QTs[s_, :, :g.shape[0], :len(keep[b])] = g.Q[:, keep[b], :].transpose(2, 0, 1)
-        self.QTs = QTs.reshape(ns, 6, n1p * n23p)
+        self.QTs = QTs.reshape(ns, 6, n1p * n23p).astype(np.float32)
         pts = np.zeros((0, 3)) if points is None else np.asarray(points, dtype=float)
         self.points = slice(len(cols), len(cols) + len(pts))      # exp(kappa . d_p + offset) of block 0, whole
         C_re, C_im = np.zeros((4 * nb, len(cols) + len(pts))), np.zeros((4 * nb, len(cols) + len(pts)))
@@ -218,13 +220,13 @@ class _SpacingLevel:
         (2 I, K), X_p the components' values at the points."""
         for b, xs, ys, QT in self.big:
             node = X[:, xs].T @ X[:, ys]                                     # (n1, n23) = Re(X1^T Y)
-            out[b] += QT @ node.ravel().astype(np.float64)
+            out[b] += QT @ node.ravel()
         ns = self.n_small
         if ns:
             node = X[:, self.small_x].T @ X[:, self.small_yz]                # (ns n1p, ns n23p), all pairs
             d = self._diag
             node = node.reshape(ns, self.n1p, ns, self.n23p)[d, :, d, :]     # (ns, n1p, n23p): each block's
-            out[self.small_rows] += (self.QTs @ node.reshape(ns, -1, 1).astype(np.float64))[:, :, 0]
+            out[self.small_rows] += (self.QTs @ node.reshape(ns, -1, 1))[:, :, 0]
         if point_sums is not None:
             point_sums += X[:, self.points].T @ point_weights
 
