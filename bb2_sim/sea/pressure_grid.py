@@ -278,6 +278,10 @@ class WavePressureGrid:
             # (the finest level's shorter waves get the hull's larger error, not every block's)
             self._groups = [(self.level(s, min(float(k[order][i0:i1].max()), self.max_kh / s)), i0, i1)
                             for s, i0, i1 in bounds]
+            # only this sea's levels are kept: a process that flies one sea after another (a campaign's worker)
+            # would otherwise hold a level (~0.5 MB) for every sea it met
+            used = {id(level) for level, _, _ in self._groups}
+            self._levels = {key: lv for key, lv in self._levels.items() if id(lv) in used}
             mu = comps.direction[order]
             # per component [k, k cos mu, k sin mu, ln a, eps - omega t]: P = K @ W gives every block's
             # exponent parameters, real [k v_z, k c_z + ln a] and imaginary [k (cos mu v_x + sin mu v_y),
