@@ -53,6 +53,8 @@ import numpy as np
 from .components import WaveComponents
 
 TWO_PI = 2.0 * np.pi
+LEVELS_KEPT = 8
+"""Spacing levels a :class:`WavePressureGrid` keeps (the most recently used): levels are planned per sea."""
 EXP_CAP = 40.0
 """Largest exponent of a factor (two factors and a sum of 2 I products must stay below float32's 3.4e38)."""
 
@@ -255,9 +257,11 @@ class WavePressureGrid:
         """The grids at spacing h for wavenumbers up to k_design (rad/m; None: every axis of degree ``order``),
         built on first use."""
         key = (h, k_design)
-        if key not in self._levels:
-            self._levels[key] = _SpacingLevel(self._blocks, h, self.order, self.points, k_design=k_design)
-        return self._levels[key]
+        level = self._levels.pop(key, None)                  # re-inserted: the dict is in order of last use
+        if level is None:
+            level = _SpacingLevel(self._blocks, h, self.order, self.points, k_design=k_design)
+        self._levels[key] = level
+        return level
 
     def spacing_of(self, k: np.ndarray) -> np.ndarray:
         """The spacing (m) each wavenumber k (rad/m) uses: the coarsest with k h <= max_kh, else the finest."""
@@ -278,10 +282,10 @@ class WavePressureGrid:
             # (the finest level's shorter waves get the hull's larger error, not every block's)
             self._groups = [(self.level(s, min(float(k[order][i0:i1].max()), self.max_kh / s)), i0, i1)
                             for s, i0, i1 in bounds]
-            # only this sea's levels are kept: a process that flies one sea after another (a campaign's worker)
-            # would otherwise hold a level (~0.5 MB) for every sea it met
-            used = {id(level) for level, _, _ in self._groups}
-            self._levels = {key: lv for key, lv in self._levels.items() if id(lv) in used}
+            # the levels of the last few seas are kept (a model alternating between two seas reuses them), not of
+            # every sea a process met (a campaign's worker flying one sea after another: ~0.5 MB a level)
+            while len(self._levels) > LEVELS_KEPT:
+                del self._levels[next(iter(self._levels))]
             mu = comps.direction[order]
             # per component [k, k cos mu, k sin mu, ln a, eps - omega t]: P = K @ W gives every block's
             # exponent parameters, real [k v_z, k c_z + ln a] and imaginary [k (cos mu v_x + sin mu v_y),
