@@ -74,7 +74,6 @@ def plane_loads(dXe: np.ndarray, UeX: np.ndarray, u: float, q: float, z: float, 
     zN = zs if n_clamped_depth else z
     uq = u * q
     dXiuq = hc["dXiuq_c2"] * uq * uq + hc["dXiuq_c1"] * uq
-    ZM, YK = tables.plane_pairs["ZM"], tables.plane_pairs["YK"]   # Z, M (and Y, K) share their axes
     X = Y = Z = K = M = N = 0.0
     for i in range(5):
         d = float(dXe[i])
@@ -82,13 +81,11 @@ def plane_loads(dXe: np.ndarray, UeX: np.ndarray, u: float, q: float, z: float, 
         s2 = s * s
         if i < 4:
             X += q2 * (T["X"][i].lookup(d, -s) + dXiuq) * s2
-            y, k = YK[i](d, zs, s)
-            Y += rho * L ** 2 * y * s2
-            K += rho * L ** 3 * k * s2
+            Y += rho * L ** 2 * T["Y"][i].lookup(d, zs) * s2
+            K += rho * L ** 3 * T["K"][i].lookup(d, zs, s) * s2
             N += rho * L ** 3 * T["N"][i].lookup(d, zN) * s2
         else:
             X += q2 * T["X"][i].lookup(d, -s) * s2
-        z_, m = ZM[i](d, zs)
-        Z += q2 * z_ * s2
-        M += q3 * m * s2
+        Z += q2 * T["Z"][i].lookup(d, zs) * s2
+        M += q3 * T["M"][i].lookup(d, zs) * s2
     return X, Y, Z, K, M, N

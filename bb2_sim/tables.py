@@ -11,7 +11,6 @@ equivalent used for plotting and tests.
 """
 from __future__ import annotations
 
-import functools
 import json
 from bisect import bisect_right
 from dataclasses import dataclass, field
@@ -116,49 +115,6 @@ def _compile(t: "LookupTable"):
     raise ValueError(f"table {t.name}: {len(segs)}-D lookups are not supported")
 
 
-def fused_lookup(a: "LookupTable", b: "LookupTable"):
-    """One scalar function for two tables on the same first two axes (breakpoints and clamps): ``f(x0, x1)`` ->
-    (a, b) for two 2-D tables, ``f(x0, x1, x2)`` -> (a, b) for a 2-D ``a`` and a 3-D ``b`` (x2 its third input).
-    The segments are found once; each value is computed exactly as its own table's lookup computes it (the same
-    operations in the same order: bit for bit). The planes' Z and M tables, and their Y and K, are such pairs."""
-    if a.ndim != 2 or b.ndim not in (2, 3):
-        raise ValueError(f"fused lookup of {a.name} and {b.name}: needs a 2-D table and a 2-D or 3-D one")
-    if a.breakpoints[:2] != b.breakpoints[:2] or a.clamps[:2] != b.clamps[:2]:
-        raise ValueError(f"fused lookup of {a.name} and {b.name}: their first two axes differ")
-    s0, s1 = (_axis_fn(bp, c) for bp, c in zip(a.breakpoints, a.clamps))
-    va, vb, ga, gb = a.values, b.values, a.gain, b.gain
-    if b.ndim == 2:
-        def f22(x0, x1):
-            i, f = s0(x0)
-            j, g = s1(x1)
-            p, q = va[i], va[i + 1]
-            y0 = p[j] + g * (p[j + 1] - p[j])
-            y1 = q[j] + g * (q[j + 1] - q[j])
-            p, q = vb[i], vb[i + 1]
-            z0 = p[j] + g * (p[j + 1] - p[j])
-            z1 = q[j] + g * (q[j + 1] - q[j])
-            return ga * (y0 + f * (y1 - y0)), gb * (z0 + f * (z1 - z0))
-        return f22
-    s2 = _axis_fn(b.breakpoints[2], b.clamps[2])
-
-    def f23(x0, x1, x2):
-        i, f = s0(x0)
-        j, g = s1(x1)
-        p, q = va[i], va[i + 1]
-        y0 = p[j] + g * (p[j + 1] - p[j])
-        y1 = q[j] + g * (q[j + 1] - q[j])
-        k, h = s2(x2)
-        a0, a1, b0, b1 = vb[i][j], vb[i][j + 1], vb[i + 1][j], vb[i + 1][j + 1]
-        c00 = a0[k] + h * (a0[k + 1] - a0[k])
-        c01 = a1[k] + h * (a1[k + 1] - a1[k])
-        c10 = b0[k] + h * (b0[k + 1] - b0[k])
-        c11 = b1[k] + h * (b1[k + 1] - b1[k])
-        c0 = c00 + g * (c01 - c00)
-        c1 = c10 + g * (c11 - c10)
-        return ga * (y0 + f * (y1 - y0)), gb * (c0 + f * (c1 - c0))
-    return f23
-
-
 @dataclass
 class LookupTable:
     """One n-D table (n = 1..3): ``gain * table(clamp(inputs))``."""
@@ -215,14 +171,6 @@ class RomTables:
     thrust_deduction: LookupTable
     unused_hull: dict[str, LookupTable]
     provenance: str = ""
-
-    @functools.cached_property
-    def plane_pairs(self) -> dict[str, list]:
-        """Per plane, its tables on shared axes as one lookup each (:func:`fused_lookup`): ``"ZM"`` (Z, M) of
-        every plane, ``"YK"`` (Y, K) of the planes that have both."""
-        P = self.planes
-        return {"ZM": [fused_lookup(z, m) for z, m in zip(P["Z"], P["M"])],
-                "YK": [fused_lookup(y, k) for y, k in zip(P["Y"], P["K"])]}
 
 
 def load_tables(path: Path | str | None = None) -> RomTables:

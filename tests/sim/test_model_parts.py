@@ -90,31 +90,6 @@ def test_tables_on_one_axis_share_its_segment_search_and_its_last_answer_is_exac
             assert t(*xs) == alone[j][k], t.name
 
 
-def test_the_planes_fused_table_pairs_equal_their_tables_bit_for_bit():
-    """The planes' Z and M tables (and Y and K) share their first two axes; plane_loads looks each pair up in one
-    call (tables.fused_lookup): bit for bit each table's own lookup, inside, outside (linear extrapolation) and on
-    the clamps and breakpoints; tables on different axes are refused."""
-    from bb2_sim.tables import fused_lookup
-
-    T = load_tables()
-    rng = np.random.default_rng(12)
-    for i in range(5):
-        pairs = [("ZM", T.planes["Z"][i], T.planes["M"][i])]
-        if i < 4:
-            pairs.append(("YK", T.planes["Y"][i], T.planes["K"][i]))
-        for name, a, b in pairs:
-            f = T.plane_pairs[name][i]
-            bp = [np.array(x) for x in b.breakpoints]
-            for _ in range(300):
-                xs = [float(rng.uniform(x[0] - 0.3 * np.ptp(x) - 1, x[-1] + 0.3 * np.ptp(x) + 1)) for x in bp]
-                if rng.random() < 0.3:                     # on a breakpoint
-                    ax = int(rng.integers(len(bp)))
-                    xs[ax] = float(rng.choice(bp[ax]))
-                assert f(*xs) == (a.lookup(*xs[:2]), b.lookup(*xs)), (a.name, b.name, xs)
-    with pytest.raises(ValueError, match="first two axes differ"):
-        fused_lookup(T.planes["Z"][0], T.planes["Y"][0])
-
-
 @pytest.fixture(scope="module")
 def model():
     return BB2Model()
