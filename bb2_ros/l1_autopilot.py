@@ -28,6 +28,7 @@ from bb2_msgs_py.contract import FRAME_BASE_LINK, message_class, node_topic_name
 
 from bb2_mission.components import build_mission_stack
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
+                                 declare_callback_priority,
                                  mission_only, node_frame, node_options, require_choice, require_positive,
                                  require_rate_stack, run_node, state_topic, subscribe_state, time_msg)
 
@@ -49,6 +50,7 @@ class L1Autopilot(Node):
                                                              "wall period of this node's /bb2/status"))
         strict = bool(declare(node, "strict_remaps", False, "a remap rule naming no topic of this node is an error"))
         check_remaps(node, argv, TOPICS, strict=strict)
+        declare_callback_priority(self)
         self.mission = mission_only(mission_file)
         self.stack = build_piece(self.mission, build_mission_stack)  # its inner loop and speed command run here
         require_rate_stack(self.stack)
@@ -62,7 +64,9 @@ class L1Autopilot(Node):
                                                  qos_profile("/bb2/guidance/rate_cmd", reader=True))
         self.sub_state = subscribe_state(node, source, self._on_state, state_topic(self.mission))
         self.status = NodeStatus(node, "bb2/l1_autopilot", period, lambda: {
-            "mission": self.mission.name, "stack": self.stack.name, "state_source": source,
+            "mission": self.mission.name,
+            "callback_scheduling": self.callback_scheduling, "stack": self.stack.name,
+            "state_source": source,
             "adaptation": str(self.stack.adaptation).lower(), **{k: str(v) for k, v in self.counts.items()}})
 
     def _on_rate(self, msg) -> None:

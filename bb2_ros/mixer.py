@@ -21,6 +21,7 @@ from bb2_msgs_py.contract import FRAME_BASE_LINK, message_class, node_topic_name
 
 from bb2_mission.components import build_mixer
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
+                                 declare_callback_priority,
                                  mission_only, node_frame, node_options, require_positive, run_node)
 
 TOPICS = ("/bb2/autopilot/vh_cmd", "/bb2/planes/cmd", "/bb2/status")
@@ -36,6 +37,7 @@ class Mixer(Node):
                                                              "wall period of this node's /bb2/status"))
         strict = bool(declare(node, "strict_remaps", False, "a remap rule naming no topic of this node is an error"))
         check_remaps(node, argv, TOPICS, strict=strict)
+        declare_callback_priority(self)
         self.mission = mission_only(mission_file)
         self.mixer = build_piece(self.mission, build_mixer)  # only the mixer: no hull, no path, no guidance
         self.cache = StampedCache()
@@ -45,7 +47,8 @@ class Mixer(Node):
                                             node_topic_name("/bb2/autopilot/vh_cmd"), self._on_vh,
                                             qos_profile("/bb2/autopilot/vh_cmd", reader=True))
         self.status = NodeStatus(node, "bb2/mixer", period, lambda: {
-            "mission": self.mission.name, **{k: str(v) for k, v in self.counts.items()}})
+            "mission": self.mission.name,
+            "callback_scheduling": self.callback_scheduling, **{k: str(v) for k, v in self.counts.items()}})
 
     def _on_vh(self, msg) -> None:
         ns = cv.stamp_to_ns(msg.header.stamp)

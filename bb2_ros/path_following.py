@@ -37,6 +37,7 @@ from bb2_msgs_py.contract import FRAME_BASE_LINK, FRAME_PATH, message_class, nod
 
 from bb2_mission.components import build_mission_stack
 from bb2_ros.node_common import (NodeStatus, StampedCache, build_piece, check_remaps, contract_publisher, declare,
+                                 declare_callback_priority,
                                  mission_only, node_frame, node_options, require_choice, require_positive,
                                  require_rate_stack, run_node, state_topic, subscribe_state, time_msg)
 
@@ -69,6 +70,7 @@ class PathFollowing(Node):
                                                              "wall period of this node's /bb2/status"))
         strict = bool(declare(node, "strict_remaps", False, "a remap rule naming no topic of this node is an error"))
         check_remaps(node, argv, TOPICS, strict=strict)
+        declare_callback_priority(self)
 
         self.mission = mission_only(mission_file)
         self.stack = None
@@ -87,7 +89,9 @@ class PathFollowing(Node):
                                                      qos_profile("/bb2/path/bernstein", reader=True))
         self.sub_state = subscribe_state(node, source, self._on_state, state_topic(self.mission))
         self.status = NodeStatus(node, "bb2/path_following", period, lambda: {
-            "mission": self.mission.name, "path_source": self.path_source, "state_source": source,
+            "mission": self.mission.name,
+            "callback_scheduling": self.callback_scheduling, "path_source": self.path_source,
+            "state_source": source,
             "path_received": str(self.stack is not None).lower(), "finished": str(self.finished).lower(),
             "rejoined_at_s": self.rejoined_at_s,
             **{k: str(v) for k, v in self.counts.items()}})

@@ -136,8 +136,8 @@ from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.state import VehicleState
 
 from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, build_piece, check_remaps,
-                                 contract_publisher, declare, mission_only, node_options, require_choice,
-                                 require_positive, run_node)
+                                 contract_publisher, declare, declare_callback_priority, mission_only, node_options,
+                                 require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics",
@@ -247,6 +247,7 @@ class Simulator(Node):
                        lambda v: setattr(self.warn, "period_s", v), positive("warn_throttle_s"))
         strict = bool(P("strict_remaps", False, "a remap rule naming no topic of this node is an error"))
         check_remaps(node, argv, TOPICS_OUT + TOPICS_IN + SENSOR_TOPICS + (NAV_STATE_TOPIC,), strict=strict)
+        declare_callback_priority(self)
 
         # this node's pieces only: the ROM at the mission's initial state and the stack's nominal propeller
         self.mission = mission_only(self.mission_file)
@@ -795,6 +796,7 @@ class Simulator(Node):
                 "failsafe": str(self.gate.failsafe).lower(), "failsafe_reason": self.gate.failsafe_reason,
                 "rate_hz": f"{self.rate_hz:g}" if realtime else "as fast as the graph",
                 "scheduling": self.scheduling if realtime else "executor (lockstep)",
+                "callback_scheduling": self.callback_scheduling,
                 "cpu_dma_latency": self.cpu_latency,
                 "step_rate_hz": f"{self._rate_measured:.2f}",
                 "real_time_factor": f"{self._rate_measured * self.h:.3f}",

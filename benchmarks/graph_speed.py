@@ -46,6 +46,7 @@ from bb2_tools.supervisor import Supervisor  # noqa: E402
 from bb2_ros.node_common import take_all  # noqa: E402
 
 TS = 0.05  # the ROM's major step (s); one simulator step per Ts of sim time
+CONTROLLERS = ("path_following", "l1_autopilot", "mixer")  # the nodes with the simulator's callback_priority
 
 
 class Probe:
@@ -75,6 +76,7 @@ class Probe:
         self.cv, self._deserialize = cv, deserialize_message
         self.state_src: dict[int, int] = {}
         self.cmd_src: dict[int, int] = {}
+        self.hop_src: dict[str, dict[int, int]] = {"/bb2/guidance/rate_cmd": {}, "/bb2/autopilot/vh_cmd": {}}
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node("bb2_bench_probe", context=self.context, enable_rosout=False,
@@ -89,7 +91,11 @@ class Probe:
             return self.node.create_subscription(message_class(type_name), name, lambda _m: None, qos(name), raw=True)
 
         self._subs = [(sub("std_msgs/msg/Float64MultiArray", "/bb2/state_native"), self._on_state),
-                      (sub("sensor_msgs/msg/JointState", "/bb2/planes/cmd"), self._on_cmd)]
+                      (sub("sensor_msgs/msg/JointState", "/bb2/planes/cmd"), self._on_cmd),
+                      (sub("geometry_msgs/msg/Vector3Stamped", "/bb2/guidance/rate_cmd"),
+                       lambda m, i: self._on_hop("/bb2/guidance/rate_cmd", m, i)),
+                      (sub("sensor_msgs/msg/JointState", "/bb2/autopilot/vh_cmd"),
+                       lambda m, i: self._on_hop("/bb2/autopilot/vh_cmd", m, i))]
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._poll, daemon=True)
         self._thread.start()
@@ -107,6 +113,9 @@ class Probe:
     def _on_cmd(self, msg, info) -> None:
         self.cmd_src.setdefault(self.cv.stamp_to_ns(msg.header.stamp), int(info["source_timestamp"]))
 
+    def _on_hop(self, name: str, msg, info) -> None:
+        self.hop_src[name].setdefault(self.cv.stamp_to_ns(msg.header.stamp), int(info["source_timestamp"]))
+
     def close(self) -> None:
         import rclpy
 
@@ -123,14 +132,17 @@ the controllers composed with the simulator alone (its real-time thread keeps it
 
 
 def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeout_s: float,
-                   probe: bool = False, groups=()) -> tuple[L.RunResult, float, Probe | None]:
+                   probe: bool = False, groups=(), node_params: dict | None = None
+                   ) -> tuple[L.RunResult, float, Probe | None]:
     """Fly ``mission`` through the whole graph (recorder included); return the run result, the
-    wall time from the first /clock to the end, and the probe (if asked for, closed)."""
+    wall time from the first /clock to the end, and the probe (if asked for, closed).  ``node_params``: other
+    nodes' parameters, ``{node: {name: value}}``."""
     os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
     os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
     out.mkdir(parents=True, exist_ok=True)
     params = out.parent / f"{out.name}_params.yaml"
-    params.write_text(yaml.safe_dump({"simulator": {"ros__parameters": sim_params}}))
+    params.write_text(yaml.safe_dump({"simulator": {"ros__parameters": sim_params},
+                                      **{n: {"ros__parameters": p} for n, p in (node_params or {}).items()}}))
     monitor = free_domain_id(end_at="simulator")
     env = dict(os.environ, ROS_DOMAIN_ID=str(monitor.domain_id), ROS_LOG_DIR=str(out / "logs" / "ros"),
                PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
@@ -200,11 +212,16 @@ def lockstep(args, tmp: Path, layout: str = "alone") -> dict:
     out = tmp / f"lockstep_{layout}"
     csv_path = tmp / f"lockstep_{layout}_states.csv"
     t0 = time.monotonic()
-    res, stepping_wall, _ = run_graph_once(REPO / "missions" / "canyon.yaml", out, "lockstep",
-                                        {"duration_s": float(args.lockstep_sim_s), "trajectory_csv": str(csv_path)},
-                                        timeout_s=args.timeout, groups=LAYOUTS[layout])
+    sim = {"duration_s": float(args.lockstep_sim_s), "trajectory_csv": str(csv_path)}
+    controllers = {}
+    if args.normal_scheduling:
+        sim["callback_priority"] = 0
+        controllers = {n: {"callback_priority": 0} for n in CONTROLLERS}
+    res, stepping_wall, _ = run_graph_once(REPO / "missions" / "canyon.yaml", out, "lockstep", sim,
+                                           timeout_s=args.timeout, groups=LAYOUTS[layout], node_params=controllers)
     total_wall = time.monotonic() - t0
-    print(f"lockstep canyon ({layout}): {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s")
+    print(f"lockstep canyon ({layout}): {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s"
+          + (" (normal scheduling)" if args.normal_scheduling else ""))
     if res.exit_code != 0:
         for e in res.exits:
             print("  " + e.report(5))
@@ -251,10 +268,12 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     out = tmp / f"realtime_{layout}"
     rate = 100.0
     params = {"duration_s": float(args.rt_sim_s), "rate_hz": rate}
+    controllers = {}
     if args.normal_scheduling:  # what a user without root gets
-        params.update(realtime_priority=0, hold_cpu_dma_latency=False)
+        params.update(realtime_priority=0, hold_cpu_dma_latency=False, callback_priority=0)
+        controllers = {n: {"callback_priority": 0} for n in CONTROLLERS}
     res, _, probe = run_graph_once(REPO / "missions" / "canyon.yaml", out, "realtime", params, timeout_s=args.timeout,
-                                   probe=True, groups=LAYOUTS[layout])
+                                   probe=True, groups=LAYOUTS[layout], node_params=controllers)
     print(f"real time at {rate:g} Hz ({layout}): {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s"
           + (" (normal scheduling, cpu_dma_latency not held)" if args.normal_scheduling else ""))
     if res.exit_code != 0:
@@ -282,6 +301,15 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
               f"p99 {np.percentile(lat_ms, 99):.3f} ms, max {lat_ms.max():.3f} ms   "
               f"[goal p99 <= {1 if layout == 'composed' else 3} ms]")
         figures["latency_p99_ms"] = float(np.percentile(lat_ms, 99))
+        # where the loop's time goes: each node's answer, from its input's source time to its output's
+        chain = [("/bb2/state_native", probe.state_src),
+                 *((name, probe.hop_src[name]) for name in ("/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd")),
+                 ("/bb2/planes/cmd", probe.cmd_src)]
+        for (a, src_a), (b, src_b) in zip(chain, chain[1:]):
+            hop = np.array([(src_b[s] - src_a[s]) * 1e-6 for s in answered if s in src_a and s in src_b])
+            if len(hop):
+                print(f"    {a} -> {b}: p50 {np.percentile(hop, 50):.3f} ms, p99 {np.percentile(hop, 99):.3f} ms "
+                      f"({len(hop)} steps)")
     reader = BagReader(out)
     status = last_simulator_status(reader)
     print(f"  simulator status: overruns {status.get('overruns')}, failsafe steps {status.get('failsafe_steps')}, "
@@ -310,8 +338,9 @@ def main() -> int:
                          "or both of the first two (default)")
     ap.add_argument("--repeat", type=int, default=1, help="repetitions (min/median/max printed at the end)")
     ap.add_argument("--normal-scheduling", action="store_true",
-                    help="real time without the simulator's SCHED_FIFO thread and cpu_dma_latency request "
-                         "(realtime_priority 0, hold_cpu_dma_latency false): what a user without root gets")
+                    help="without the nodes' SCHED_FIFO callbacks (callback_priority 0) and, in real time, the "
+                         "simulator's SCHED_FIFO thread and cpu_dma_latency request (realtime_priority 0, "
+                         "hold_cpu_dma_latency false): what a user without root gets")
     args = ap.parse_args()
     if args.repeat < 1:
         ap.error("--repeat must be >= 1")

@@ -1,0 +1,160 @@
+"""Issue 15: the controllers' callbacks at a real-time priority (``callback_priority``).
+
+The helper (:func:`bb2_ros.node_common.set_callback_priority`) in a child process of its own (scheduling is per
+thread and per process: the test process keeps its own): which threads it changes, which it leaves, what it says
+when the OS refuses.  Then a real node over real DDS: its threads' policy as the kernel reports it, its status,
+priority 0 and an invalid priority."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+CHILD = textwrap.dedent("""
+    import json, os, sys, threading
+    sys.path.insert(0, {repo!r})
+    from bb2_ros.node_common import set_callback_priority
+
+    def named(name, prio=0):
+        ready, stop = threading.Event(), threading.Event()
+        box = {{}}
+
+        def run():
+            box["tid"] = threading.get_native_id()
+            with open(f"/proc/self/task/{{box['tid']}}/comm", "w") as f:
+                f.write(name)
+            if prio:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(prio))
+            ready.set()
+            stop.wait()
+        threading.Thread(target=run, daemon=True).start()
+        ready.wait()
+        return box["tid"]
+
+    tids = {{"main": threading.get_native_id(), "dds": named("dds.test"), "worker": named("worker")}}
+    if {own_rt}:
+        tids["stepping"] = named("stepping", 9)
+    if {drop}:
+        os.setgid(65534)
+        os.setuid(65534)  # nobody: no CAP_SYS_NICE (and the default RLIMIT_RTPRIO 0)
+    outcome = set_callback_priority(7)
+    pol = {{k: [os.sched_getscheduler(t) & ~getattr(os, "SCHED_RESET_ON_FORK", 0),
+               os.sched_getparam(t).sched_priority] for k, t in tids.items()}}
+    print(json.dumps({{"outcome": outcome, "policies": pol}}))
+""")
+
+
+def _child(*, own_rt: bool = False, drop: bool = False) -> dict:
+    code = CHILD.format(repo=str(REPO), own_rt=own_rt, drop=drop)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _may_use_fifo() -> bool:
+    try:
+        import resource
+
+        return os.geteuid() == 0 or resource.getrlimit(resource.RLIMIT_RTPRIO)[0] >= 7
+    except (ImportError, OSError):
+        return False
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="thread scheduling through /proc: Linux only")
+def test_the_executor_and_middleware_threads_get_sched_fifo_the_others_stay_as_they_are():
+    got = _child(own_rt=True)
+    pol, other, fifo = got["policies"], os.SCHED_OTHER, os.SCHED_FIFO
+    if not _may_use_fifo():  # what a user without the privilege gets: said, nothing changed
+        assert got["outcome"].startswith("normal (SCHED_FIFO 7 refused: "), got
+        assert pol["main"] == pol["dds"] == pol["worker"] == [other, 0], got
+        return
+    assert got["outcome"] == "SCHED_FIFO 7 (2 threads: the executor's and the middleware's)", got
+    assert pol["main"] == [fifo, 7] and pol["dds"] == [fifo, 7], got  # the caller and the dds.* thread
+    assert pol["worker"] == [other, 0], got  # a BLAS pool's thread (may spin while it waits) is left alone
+    assert pol["stepping"] == [fifo, 9], got  # a thread real-time already keeps its own priority
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="thread scheduling through /proc: Linux only")
+@pytest.mark.skipif(os.geteuid() != 0, reason="dropping to an unprivileged user needs root (here the refusal is "
+                                               "what the other test sees)")
+def test_a_refused_priority_is_said_and_leaves_every_thread_normal():
+    got = _child(drop=True)
+    assert got["outcome"] == "normal (SCHED_FIFO 7 refused: Operation not permitted)", got
+    assert all(p == [os.SCHED_OTHER, 0] for p in got["policies"].values()), got
+
+
+# ----------------------------------------------------------------------------------------- a real node
+@pytest.mark.ros
+def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_path):
+    pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
+    from rosenv import claimed_domain, spawn_node  # tests/rosenv.py
+
+    from test_nodes import MISSION, Probe  # the node tests' probe (tests/ros/test_nodes.py)
+
+    mission = tmp_path / "circle.yaml"
+    mission.write_text(MISSION)
+    domain_id = claimed_domain()
+    bad = spawn_node("bb2_ros.mixer", domain_id, "-p", f"mission_file:={mission}", "-p", "callback_priority:=120")
+    probe = Probe(domain_id)
+    procs = []
+    try:
+        probe.sub("/bb2/status")
+        for name, prio in (("mixer_rt", 33), ("mixer_normal", 0)):
+            procs.append(spawn_node("bb2_ros.mixer", domain_id, "-p", f"mission_file:={mission}", "-p",
+                                    f"callback_priority:={prio}", "-p", "status_period_s:=0.2", "-r",
+                                    f"__node:={name}"))
+        # the simulator (lockstep, waiting for answers that do not come) takes the same parameter
+        procs.append(spawn_node("bb2_ros.simulator", domain_id, "-p", f"mission_file:={mission}", "-p",
+                                "callback_priority:=21", "-p", "status_period_s:=0.2"))
+
+        def statuses():
+            with probe.lock:
+                arrays = list(probe.msgs.get("/bb2/status", []))
+            return {st.hardware_id: {kv.key: kv.value for kv in st.values} for a in arrays for st in a.status
+                    if st.name in ("bb2/mixer", "bb2/simulator")}
+
+        probe.wait(lambda: {"/mixer_rt", "/mixer_normal", "/simulator"} <= set(statuses()), 60,
+                   "the mixers' and the simulator's status", procs[0])
+        rt, normal = statuses()["/mixer_rt"], statuses()["/mixer_normal"]
+        assert normal["callback_scheduling"] == "normal", normal
+        sim = statuses()["/simulator"]["callback_scheduling"]
+        assert sim.startswith("SCHED_FIFO 21 (" if _may_use_fifo() else "normal (SCHED_FIFO 21 refused: "), sim
+        pid = procs[0].pid
+        threads = {}
+        for t in os.listdir(f"/proc/{pid}/task"):
+            try:
+                comm = Path(f"/proc/{pid}/task/{t}/comm").read_text().strip()
+                threads[int(t)] = (comm, os.sched_getscheduler(int(t)) & ~getattr(os, "SCHED_RESET_ON_FORK", 0),
+                                   os.sched_getparam(int(t)).sched_priority)
+            except (OSError, ProcessLookupError):
+                continue
+        dds = {t: v for t, v in threads.items() if v[0].startswith("dds.")}
+        assert dds, threads  # Fast DDS names its threads dds.*
+        if _may_use_fifo():
+            assert rt["callback_scheduling"] == f"SCHED_FIFO 33 ({len(dds) + 1} threads: the executor's and the middleware's)", \
+                rt
+            assert threads[pid][1:] == (os.SCHED_FIFO, 33), threads  # the executor: the process's main thread
+            assert all(v[1:] == (os.SCHED_FIFO, 33) for v in dds.values()), threads
+            # the threads started before the middleware's (the BLAS pools of numpy and scipy) are left alone; one the
+            # executor starts later inherits its policy
+            pools = [v for t, v in threads.items() if t != pid and t < min(dds)]
+            assert pools and all(v[1] == os.SCHED_OTHER for v in pools), repr(sorted(threads.items()))
+        else:
+            assert rt["callback_scheduling"].startswith("normal (SCHED_FIFO 33 refused: "), rt
+        out, _ = bad.communicate(timeout=60)
+        assert bad.returncode == 2 and "callback_priority must be in 0..99, got 120" in out, out
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        codes = [p.wait(15) for p in procs]
+        probe.close()
+    assert codes == [0] * len(procs), [p.communicate()[0] for p in procs]
