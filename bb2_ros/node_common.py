@@ -303,29 +303,50 @@ class Throttle:
 
 # ----------------------------------------------------------------------------------------- scheduling
 CALLBACK_PRIORITY_DEFAULT = 40
-"""SCHED_FIFO priority of the simulator's and the controllers' processes by default: below the simulator's stepping
-thread (its ``realtime_priority``, 50), above every normally scheduled process (the recorder, a plotter, someone
-else's build).  Measured (``benchmarks/graph_speed.py``): real time at 100 Hz, state -> plane command latency p99
-3.3 -> 1.6 ms; lockstep, graph / library runner 0.22 -> 0.30."""
+"""SCHED_FIFO priority of the controllers' processes by default: below the simulator's stepping thread (its
+``realtime_priority``, 50), above every normally scheduled process (the recorder, a plotter, someone else's build).
+Measured (``benchmarks/graph_speed.py``): real time at 100 Hz, state -> plane command latency p99 3.5 -> 1.5 ms."""
+
+
+def _priority_check(name: str):
+    def check(v):
+        if isinstance(v, bool) or not 0 <= int(v) <= 99:
+            raise NodeConfigError(f"{name} must be in 0..99, got {v}")
+    return check
 
 
 def declare_callback_priority(shell) -> int:
-    """Declare ``callback_priority`` on a node shell (``shell.callback_priority``; :func:`run_nodes` applies the
-    largest of a process's nodes' to the process, :func:`set_callback_priority`, and sets
+    """Declare ``callback_priority`` on a controller's shell (``shell.callback_priority``; :func:`run_nodes` applies
+    the largest of a process's nodes' to the process, :func:`set_callback_priority`, and sets
     ``shell.callback_scheduling``, what its status says)."""
-    def check(v):
-        if isinstance(v, bool) or not 0 <= int(v) <= 99:
-            raise NodeConfigError(f"callback_priority must be in 0..99, got {v}")
-
     node = _node_of(shell)
     shell.callback_priority = int(declare(
         node, "callback_priority", CALLBACK_PRIORITY_DEFAULT,
         "SCHED_FIFO priority (1-99) of this node's process while it runs: the executor thread that runs its "
         "callbacks and the middleware's threads that deliver its messages, so an answer is not queued behind "
         "other processes; 0 = normal scheduling (refused by the OS, no CAP_SYS_NICE / rtprio limit: a warning, "
-        "normal scheduling)", check=check))
+        "normal scheduling).  Composed with the simulator in lockstep, the simulator's lockstep_priority decides",
+        check=_priority_check("callback_priority")))
     shell.callback_scheduling = "normal" if shell.callback_priority == 0 else "not yet set (the node is not spinning)"
     return shell.callback_priority
+
+
+def declare_lockstep_priority(shell, *, lockstep: bool) -> int:
+    """Declare the simulator's ``lockstep_priority``: in lockstep, the SCHED_FIFO priority of its process (executor
+    and middleware threads; default 0, normal scheduling), which then also decides a composed process's (the
+    simulator paces it: ``shell.process_priority``); in real time its stepping thread has ``realtime_priority`` and
+    a composed process takes the controllers' ``callback_priority``."""
+    node = _node_of(shell)
+    value = int(declare(
+        node, "lockstep_priority", 0,
+        "lockstep: SCHED_FIFO priority (1-99) of the simulator's process (executor and middleware threads), and of "
+        "a composed process holding it; 0 = normal scheduling.  At a real-time priority a lockstep graph runs "
+        "faster (no waiting for a core behind other processes) but ahead of every reader outside the lockstep "
+        "handshake (a plotter, ros2 topic echo) on a loaded machine: such a reader may then lose samples",
+        check=_priority_check("lockstep_priority")))
+    shell.process_priority = value if lockstep else None
+    shell.callback_scheduling = "normal" if not lockstep or value == 0 else "not yet set (the node is not spinning)"
+    return value
 
 
 def _scheduled_threads() -> list[int]:
@@ -666,21 +687,29 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
 
 
 def _apply_callback_priority(shells: Sequence[Any]) -> None:
-    """The largest ``callback_priority`` of the process's nodes, applied (:func:`set_callback_priority`) from the
-    thread that will spin the executor; each node that asked says the outcome in its log and status."""
-    asked = [sh for sh in shells if getattr(sh, "callback_priority", 0) > 0]
+    """The process's SCHED_FIFO priority, applied (:func:`set_callback_priority`) from the thread that will spin
+    the executor: the simulator's in lockstep (``process_priority``: it paces the process), else the largest
+    ``callback_priority`` of the process's nodes.  Each node that asked says the outcome in its log and status."""
+    paced = [sh.process_priority for sh in shells if getattr(sh, "process_priority", None) is not None]
+    asked = [sh for sh in shells if getattr(sh, "callback_priority", 0) > 0 or getattr(sh, "process_priority", 0)]
     if not asked:
         return
-    priority = max(sh.callback_priority for sh in asked)
-    outcome = set_callback_priority(priority)
+    if paced:
+        priority = max(paced)
+        outcome = set_callback_priority(priority) if priority > 0 else (
+            f"normal (composed with the simulator in lockstep: its lockstep_priority {priority} decides)")
+    else:
+        priority = max(sh.callback_priority for sh in asked)
+        outcome = set_callback_priority(priority)
     for sh in asked:
         sh.callback_scheduling = outcome
         logger = _node_of(sh).get_logger()
         if outcome.startswith("SCHED_FIFO"):
             logger.info(f"callbacks at {outcome}")
+        elif "refused" in outcome:
+            logger.warning(f"callbacks with {outcome}")
         else:
-            logger.warning(f"callback_priority {priority}: {outcome.removeprefix('normal ')}: callbacks with "
-                           "normal scheduling")
+            logger.info(f"callbacks with {outcome}")
 
 
 # ----------------------------------------------------------------------------------------- status

@@ -136,7 +136,7 @@ from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.state import VehicleState
 
 from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, build_piece, check_remaps,
-                                 contract_publisher, declare, declare_callback_priority, mission_only, node_options,
+                                 contract_publisher, declare, declare_lockstep_priority, mission_only, node_options,
                                  require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
@@ -247,7 +247,7 @@ class Simulator(Node):
                        lambda v: setattr(self.warn, "period_s", v), positive("warn_throttle_s"))
         strict = bool(P("strict_remaps", False, "a remap rule naming no topic of this node is an error"))
         check_remaps(node, argv, TOPICS_OUT + TOPICS_IN + SENSOR_TOPICS + (NAV_STATE_TOPIC,), strict=strict)
-        declare_callback_priority(self)
+        declare_lockstep_priority(self, lockstep=self.time_mode is TimeMode.LOCKSTEP)
 
         # this node's pieces only: the ROM at the mission's initial state and the stack's nominal propeller
         self.mission = mission_only(self.mission_file)

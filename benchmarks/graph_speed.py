@@ -21,7 +21,7 @@
    repetition paired with its own runner run; ``--repeat N`` prints min/median/max over N.
 
 Usage: ``python benchmarks/graph_speed.py [--out DIR] [--rt-sim-s 100] [--lockstep-sim-s 500] [--only MODE]
-[--layout alone|composed|both] [--repeat N] [--normal-scheduling]``
+[--layout alone|composed|both] [--repeat N] [--normal-scheduling] [--lockstep-priority P]``
 (``bash run.sh bench`` runs it with the defaults; about 3-6 minutes of wall time on 2 cores).
 """
 from __future__ import annotations
@@ -46,7 +46,7 @@ from bb2_tools.supervisor import Supervisor  # noqa: E402
 from bb2_ros.node_common import take_all  # noqa: E402
 
 TS = 0.05  # the ROM's major step (s); one simulator step per Ts of sim time
-CONTROLLERS = ("path_following", "l1_autopilot", "mixer")  # the nodes with the simulator's callback_priority
+CONTROLLERS = ("path_following", "l1_autopilot", "mixer")  # the nodes with a callback_priority
 
 
 class Probe:
@@ -215,13 +215,15 @@ def lockstep(args, tmp: Path, layout: str = "alone") -> dict:
     sim = {"duration_s": float(args.lockstep_sim_s), "trajectory_csv": str(csv_path)}
     controllers = {}
     if args.normal_scheduling:
-        sim["callback_priority"] = 0
         controllers = {n: {"callback_priority": 0} for n in CONTROLLERS}
+    if args.lockstep_priority:
+        sim["lockstep_priority"] = args.lockstep_priority
     res, stepping_wall, _ = run_graph_once(REPO / "missions" / "canyon.yaml", out, "lockstep", sim,
                                            timeout_s=args.timeout, groups=LAYOUTS[layout], node_params=controllers)
     total_wall = time.monotonic() - t0
     print(f"lockstep canyon ({layout}): {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s"
-          + (" (normal scheduling)" if args.normal_scheduling else ""))
+          + (" (controllers at normal scheduling)" if args.normal_scheduling else "")
+          + (f" (simulator at SCHED_FIFO {args.lockstep_priority})" if args.lockstep_priority else ""))
     if res.exit_code != 0:
         for e in res.exits:
             print("  " + e.report(5))
@@ -270,7 +272,7 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     params = {"duration_s": float(args.rt_sim_s), "rate_hz": rate}
     controllers = {}
     if args.normal_scheduling:  # what a user without root gets
-        params.update(realtime_priority=0, hold_cpu_dma_latency=False, callback_priority=0)
+        params.update(realtime_priority=0, hold_cpu_dma_latency=False)
         controllers = {n: {"callback_priority": 0} for n in CONTROLLERS}
     res, _, probe = run_graph_once(REPO / "missions" / "canyon.yaml", out, "realtime", params, timeout_s=args.timeout,
                                    probe=True, groups=LAYOUTS[layout], node_params=controllers)
@@ -337,6 +339,9 @@ def main() -> int:
                     help="one process per node, the nodes composed, the controllers composed (simulator alone), "
                          "or both of the first two (default)")
     ap.add_argument("--repeat", type=int, default=1, help="repetitions (min/median/max printed at the end)")
+    ap.add_argument("--lockstep-priority", type=int, default=0,
+                    help="lockstep with the simulator's process at this SCHED_FIFO priority (its lockstep_priority; "
+                         "default 0, normal scheduling)")
     ap.add_argument("--normal-scheduling", action="store_true",
                     help="without the nodes' SCHED_FIFO callbacks (callback_priority 0) and, in real time, the "
                          "simulator's SCHED_FIFO thread and cpu_dma_latency request (realtime_priority 0, "

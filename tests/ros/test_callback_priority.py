@@ -95,7 +95,7 @@ def test_a_refused_priority_is_said_and_leaves_every_thread_normal():
 @pytest.mark.ros
 def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_path):
     pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
-    from rosenv import claimed_domain, spawn_node  # tests/rosenv.py
+    from rosenv import claimed_domain, ros_env, spawn_node  # tests/rosenv.py
 
     from test_nodes import MISSION, Probe  # the node tests' probe (tests/ros/test_nodes.py)
 
@@ -111,9 +111,16 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
             procs.append(spawn_node("bb2_ros.mixer", domain_id, "-p", f"mission_file:={mission}", "-p",
                                     f"callback_priority:={prio}", "-p", "status_period_s:=0.2", "-r",
                                     f"__node:={name}"))
-        # the simulator (lockstep, waiting for answers that do not come) takes the same parameter
+        # the simulator (lockstep, waiting for answers that do not come): its process at lockstep_priority
         procs.append(spawn_node("bb2_ros.simulator", domain_id, "-p", f"mission_file:={mission}", "-p",
-                                "callback_priority:=21", "-p", "status_period_s:=0.2"))
+                                "lockstep_priority:=21", "-p", "status_period_s:=0.2"))
+        # composed with the simulator in lockstep (default lockstep_priority 0), a controller's 40 does not apply:
+        # the simulator paces the process, and at a real-time priority it would run ahead of outside readers
+        procs.append(subprocess.Popen(
+            [sys.executable, "-m", "bb2_ros.container", "--node", "simulator", "--ros-args", "-p",
+             f"mission_file:={mission}", "-p", "status_period_s:=0.2", "-r", "__node:=sim_c", "--node", "mixer",
+             "--ros-args", "-p", f"mission_file:={mission}", "-p", "status_period_s:=0.2", "-r", "__node:=mixer_c"],
+            cwd=REPO, env=ros_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
 
         def statuses():
             with probe.lock:
@@ -121,12 +128,15 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
             return {st.hardware_id: {kv.key: kv.value for kv in st.values} for a in arrays for st in a.status
                     if st.name in ("bb2/mixer", "bb2/simulator")}
 
-        probe.wait(lambda: {"/mixer_rt", "/mixer_normal", "/simulator"} <= set(statuses()), 60,
+        probe.wait(lambda: {"/mixer_rt", "/mixer_normal", "/simulator", "/mixer_c"} <= set(statuses()), 60,
                    "the mixers' and the simulator's status", procs[0])
         rt, normal = statuses()["/mixer_rt"], statuses()["/mixer_normal"]
         assert normal["callback_scheduling"] == "normal", normal
         sim = statuses()["/simulator"]["callback_scheduling"]
         assert sim.startswith("SCHED_FIFO 21 (" if _may_use_fifo() else "normal (SCHED_FIFO 21 refused: "), sim
+        composed = statuses()["/mixer_c"]["callback_scheduling"]
+        assert composed == "normal (composed with the simulator in lockstep: its lockstep_priority 0 decides)", composed
+        assert os.sched_getscheduler(procs[-1].pid) == os.SCHED_OTHER
         pid = procs[0].pid
         threads = {}
         for t in os.listdir(f"/proc/{pid}/task"):
