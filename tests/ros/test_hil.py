@@ -146,17 +146,23 @@ def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
     assert s["state_finite"] and not s["failsafe_after_release"] and s["e_vertical_max_m"] < MAX_PATH_ERROR_M
 
 
-def _autopilot_subscriptions(lst: Listener, proc: subprocess.Popen, timeout_s: float = 120.0) -> set[str]:
-    """The topics the running ``external_autopilot`` node subscribes to, as the graph shows them (polled until its
-    sensor subscriptions are discovered)."""
+def _autopilot_subscriptions(lst: Listener, proc: subprocess.Popen, expect: set[str],
+                             timeout_s: float = 120.0, settle_s: float = 1.0) -> set[str]:
+    """The topics the running ``external_autopilot`` node subscribes to, as the graph shows them: polled until every
+    topic of ``expect`` is discovered (a node's subscriptions are discovered one by one: beside two CPU hogs the
+    imu was seen with the gps and the DVL's water track still missing), then for ``settle_s`` more, so that one it
+    should not have is seen too."""
     deadline = time.monotonic() + timeout_s
     topics: set[str] = set()
+    settled_at = None
     while time.monotonic() < deadline and proc.poll() is None:
         try:
-            topics = {n for n, _ in lst.node.get_subscriber_names_and_types_by_node("external_autopilot", "/")}
+            topics |= {n for n, _ in lst.node.get_subscriber_names_and_types_by_node("external_autopilot", "/")}
         except Exception:  # noqa: BLE001 - not discovered yet (rclpy raises NodeNameNonExistentError)
-            topics = set()
-        if "/bb2/sensors/imu" in topics:
+            pass
+        if settled_at is None and expect <= topics:
+            settled_at = time.monotonic() + settle_s
+        if settled_at is not None and time.monotonic() >= settled_at:
             return topics
         time.sleep(0.2)
     return topics
@@ -187,7 +193,7 @@ def test_external_autopilot_on_sensors_alone_in_lockstep_is_the_library_runner(t
                                  str(domain_id), "--summary", str(tmp_path / "hil.json"), "--trajectory", str(states)],
                                 cwd=REPO, env=ros_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         try:
-            subs = _autopilot_subscriptions(lst, proc)
+            subs = _autopilot_subscriptions(lst, proc, set(NAVIGATION_SENSOR_TOPICS))
             out, _ = proc.communicate(timeout=240)
         finally:
             if proc.poll() is None:
