@@ -302,10 +302,13 @@ class Throttle:
 
 
 # ----------------------------------------------------------------------------------------- scheduling
-CALLBACK_PRIORITY_DEFAULT = 40
-"""SCHED_FIFO priority of the controllers' processes by default: below the simulator's stepping thread (its
-``realtime_priority``, 50), above every normally scheduled process (the recorder, a plotter, someone else's build).
-Measured (``benchmarks/graph_speed.py``): real time at 100 Hz, state -> plane command latency p99 3.5 -> 1.5 ms."""
+CALLBACK_PRIORITY_REALTIME = 40
+"""The controllers' ``callback_priority`` in real time, as ``bb2-launch`` and the launch files set it (the node's
+default is 0, normal scheduling): below the simulator's stepping thread (its ``realtime_priority``, 50), above every
+normally scheduled process (the recorder, a plotter, someone else's build).  Measured
+(``benchmarks/graph_speed.py``): at 100 Hz, state -> plane command latency p99 3.5 -> 1.6 ms.  Not in lockstep: at
+a real-time priority a lockstep graph's controllers took a core from the normally scheduled parts of a real-time
+graph beside it (a HIL simulator's command reception, starved 1.7 s into its failsafe)."""
 
 
 def _priority_check(name: str):
@@ -321,11 +324,12 @@ def declare_callback_priority(shell) -> int:
     ``shell.callback_scheduling``, what its status says)."""
     node = _node_of(shell)
     shell.callback_priority = int(declare(
-        node, "callback_priority", CALLBACK_PRIORITY_DEFAULT,
+        node, "callback_priority", 0,
         "SCHED_FIFO priority (1-99) of this node's process while it runs: the executor thread that runs its "
         "callbacks and the middleware's threads that deliver its messages, so an answer is not queued behind "
-        "other processes; 0 = normal scheduling (refused by the OS, no CAP_SYS_NICE / rtprio limit: a warning, "
-        "normal scheduling).  Composed with the simulator in lockstep, the simulator's lockstep_priority decides",
+        "other processes; 0 = normal scheduling (bb2-launch and the launch files set 40 in real time); refused "
+        "by the OS (no CAP_SYS_NICE / rtprio limit): a warning, normal scheduling.  Composed with the simulator "
+        "in lockstep, the simulator's lockstep_priority decides",
         check=_priority_check("callback_priority")))
     shell.callback_scheduling = "normal" if shell.callback_priority == 0 else "not yet set (the node is not spinning)"
     return shell.callback_priority

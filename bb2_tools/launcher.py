@@ -72,7 +72,7 @@ from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
 
 from bb2_ros.container import NODE_CLASSES
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
-from bb2_ros.node_common import PUBLISHED_DIR_ENV
+from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, PUBLISHED_DIR_ENV
 from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE
 from bb2_tools.graph_monitor import END_AT, GraphMonitor, domain_monitor, format_status
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
@@ -471,6 +471,8 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 ros += ["-p", "wait_for_commands:=true"]
         else:
             ros += ["-p", "use_sim_time:=true"]
+            if mode == "realtime" and name in REALTIME_CONTROLLERS:  # their answers do not wait for a core
+                ros += ["-p", f"callback_priority:={CALLBACK_PRIORITY_REALTIME}"]
         ros += ns_args
         if attempt > 0 and name in REJOINING:  # a node with state along the run joins the run where it stands
             ros += ["-p", f"{REJOINING[name]}:=true"]
@@ -672,6 +674,8 @@ simulator's own lockstep timeout steps on held commands after 0.5 s by default, 
 stands still this long)."""
 
 REJOINING = {"path_following": "rejoin_run"}
+REALTIME_CONTROLLERS = ("path_following", "l1_autopilot", "mixer")
+"""The nodes that run their callbacks at ``callback_priority`` CALLBACK_PRIORITY_REALTIME in real time."""
 """Nodes with state along the run, and the parameter that makes a restarted one rejoin the run where it stands (the
 path following's virtual time from the vehicle's closest path point).  The other controllers rejoin from the current
 state by themselves: the L1 autopilot's predictor starts at the first measurement, the mixer is stateless, the

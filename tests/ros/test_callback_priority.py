@@ -119,7 +119,8 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
         procs.append(subprocess.Popen(
             [sys.executable, "-m", "bb2_ros.container", "--node", "simulator", "--ros-args", "-p",
              f"mission_file:={mission}", "-p", "status_period_s:=0.2", "-r", "__node:=sim_c", "--node", "mixer",
-             "--ros-args", "-p", f"mission_file:={mission}", "-p", "status_period_s:=0.2", "-r", "__node:=mixer_c"],
+             "--ros-args", "-p", f"mission_file:={mission}", "-p", "status_period_s:=0.2", "-p",
+             "callback_priority:=40", "-r", "__node:=mixer_c"],
             cwd=REPO, env=ros_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
 
         def statuses():
