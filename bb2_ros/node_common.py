@@ -309,6 +309,8 @@ normally scheduled process (the recorder, a plotter, someone else's build).  Mea
 (``benchmarks/graph_speed.py``): at 100 Hz, state -> plane command latency p99 3.5 -> 1.6 ms.  Not in lockstep: at
 a real-time priority a lockstep graph's controllers took a core from the normally scheduled parts of a real-time
 graph beside it (a HIL simulator's command reception, starved 1.7 s into its failsafe)."""
+REALTIME_CONTROLLERS = ("path_following", "l1_autopilot", "mixer")
+"""The nodes with a ``callback_priority``, which ``bb2-launch`` sets to CALLBACK_PRIORITY_REALTIME in real time."""
 
 
 def _priority_check(name: str):

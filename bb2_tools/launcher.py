@@ -72,7 +72,7 @@ from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
 
 from bb2_ros.container import NODE_CLASSES
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
-from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, PUBLISHED_DIR_ENV
+from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, PUBLISHED_DIR_ENV, REALTIME_CONTROLLERS
 from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE
 from bb2_tools.graph_monitor import END_AT, GraphMonitor, domain_monitor, format_status
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
@@ -674,8 +674,6 @@ simulator's own lockstep timeout steps on held commands after 0.5 s by default, 
 stands still this long)."""
 
 REJOINING = {"path_following": "rejoin_run"}
-REALTIME_CONTROLLERS = ("path_following", "l1_autopilot", "mixer")
-"""The nodes that run their callbacks at ``callback_priority`` CALLBACK_PRIORITY_REALTIME in real time."""
 """Nodes with state along the run, and the parameter that makes a restarted one rejoin the run where it stands (the
 path following's virtual time from the vehicle's closest path point).  The other controllers rejoin from the current
 state by themselves: the L1 autopilot's predictor starts at the first measurement, the mixer is stateless, the

@@ -43,10 +43,9 @@ sys.path.insert(0, str(REPO))
 from bb2_tools import launcher as L  # noqa: E402
 from bb2_tools.graph_monitor import free_domain_id  # noqa: E402
 from bb2_tools.supervisor import Supervisor  # noqa: E402
-from bb2_ros.node_common import take_all  # noqa: E402
+from bb2_ros.node_common import REALTIME_CONTROLLERS, take_all  # noqa: E402
 
 TS = 0.05  # the ROM's major step (s); one simulator step per Ts of sim time
-CONTROLLERS = ("path_following", "l1_autopilot", "mixer")  # the nodes with a callback_priority
 
 
 class Probe:
@@ -213,16 +212,12 @@ def lockstep(args, tmp: Path, layout: str = "alone") -> dict:
     csv_path = tmp / f"lockstep_{layout}_states.csv"
     t0 = time.monotonic()
     sim = {"duration_s": float(args.lockstep_sim_s), "trajectory_csv": str(csv_path)}
-    controllers = {}
-    if args.normal_scheduling:
-        controllers = {n: {"callback_priority": 0} for n in CONTROLLERS}
     if args.lockstep_priority:
         sim["lockstep_priority"] = args.lockstep_priority
     res, stepping_wall, _ = run_graph_once(REPO / "missions" / "canyon.yaml", out, "lockstep", sim,
-                                           timeout_s=args.timeout, groups=LAYOUTS[layout], node_params=controllers)
+                                           timeout_s=args.timeout, groups=LAYOUTS[layout])
     total_wall = time.monotonic() - t0
     print(f"lockstep canyon ({layout}): {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s"
-          + (" (controllers at normal scheduling)" if args.normal_scheduling else "")
           + (f" (simulator at SCHED_FIFO {args.lockstep_priority})" if args.lockstep_priority else ""))
     if res.exit_code != 0:
         for e in res.exits:
@@ -273,7 +268,7 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     controllers = {}
     if args.normal_scheduling:  # what a user without root gets
         params.update(realtime_priority=0, hold_cpu_dma_latency=False)
-        controllers = {n: {"callback_priority": 0} for n in CONTROLLERS}
+        controllers = {n: {"callback_priority": 0} for n in REALTIME_CONTROLLERS}
     res, _, probe = run_graph_once(REPO / "missions" / "canyon.yaml", out, "realtime", params, timeout_s=args.timeout,
                                    probe=True, groups=LAYOUTS[layout], node_params=controllers)
     print(f"real time at {rate:g} Hz ({layout}): {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s"
@@ -343,9 +338,9 @@ def main() -> int:
                     help="lockstep with the simulator's process at this SCHED_FIFO priority (its lockstep_priority; "
                          "default 0, normal scheduling)")
     ap.add_argument("--normal-scheduling", action="store_true",
-                    help="without the nodes' SCHED_FIFO callbacks (callback_priority 0) and, in real time, the "
-                         "simulator's SCHED_FIFO thread and cpu_dma_latency request (realtime_priority 0, "
-                         "hold_cpu_dma_latency false): what a user without root gets")
+                    help="real time without the controllers' SCHED_FIFO callbacks (callback_priority 0, as in "
+                         "lockstep), the simulator's SCHED_FIFO thread and its cpu_dma_latency request "
+                         "(realtime_priority 0, hold_cpu_dma_latency false): what a user without root gets")
     args = ap.parse_args()
     if args.repeat < 1:
         ap.error("--repeat must be >= 1")
