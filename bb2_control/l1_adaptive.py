@@ -19,6 +19,7 @@ Notation follows Martin et al. 2022 (arXiv 2212.09821, "Controller") and SPEC 5.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -298,7 +299,7 @@ class L1Channel:
             NonFiniteInputError: if ``reference`` or ``y`` is NaN or infinite (states are unchanged).
         """
         rho, y = float(reference), float(y)
-        if not (np.isfinite(rho) and np.isfinite(y)):
+        if not (math.isfinite(rho) and math.isfinite(y)):
             raise NonFiniteInputError(f"L1 channel input is not finite: reference={rho}, y={y}")
         if not self._adaptive:
             self.u_ad = rho
@@ -364,6 +365,6 @@ class L1Augmentation:
             if n not in references or n not in measurements:
                 raise L1DesignError(f"L1 step needs a reference and a measurement for channel {n!r}")
             r, y = float(references[n]), float(measurements[n])
-            if not (np.isfinite(r) and np.isfinite(y)):
+            if not (math.isfinite(r) and math.isfinite(y)):
                 raise NonFiniteInputError(f"L1 channel {n!r} input is not finite: reference={r}, y={y}")
         return {n: c.step(references[n], measurements[n]) for n, c in self.channels.items()}

@@ -46,6 +46,11 @@ class PathLike(Protocol):
     def acceleration(self, t: float) -> np.ndarray: ...
 
 
+def _norm(a: np.ndarray) -> float:
+    """|a| of a 1-D float array: ``np.linalg.norm``'s arithmetic (sqrt of a.dot(a)) without its overhead."""
+    return math.sqrt(float(a.dot(a)))
+
+
 def vee(S: np.ndarray) -> np.ndarray:
     """Inverse hat map of the skew part of ``S``: [[0,-a3,a2],[a3,0,-a1],[-a2,a1,0]] -> (a1, a2, a3)."""
     A = 0.5 * (S - S.T)
@@ -77,14 +82,15 @@ def flow_to_body_rates(q_c: float, r_c: float, v_flu: np.ndarray) -> tuple[float
 
 def path_frame(dp: np.ndarray) -> np.ndarray:
     """R_TI of the horizontal-normal frame for the path derivative ``dp`` (SPEC 3.1 step 2)."""
-    sp = float(np.linalg.norm(dp))
-    h = math.hypot(dp[0], dp[1])
+    sp = _norm(dp)
+    x, y, _ = dp.tolist()
+    h = math.hypot(x, y)
     if sp == 0.0:
         raise PathFollowingError("path speed |p_d'| is zero: the path frame is undefined")
     if h <= 1e-9 * sp:
         raise PathFollowingError("vertical path tangent: the horizontal-normal path frame is singular")
     t1 = dp / sp
-    t2 = np.array([-dp[1], dp[0], 0.0]) / h
+    t2 = np.array([-y, x, 0.0]) / h
     return np.array([t1, t2, _cross(t1, t2)]).T
 
 
@@ -199,20 +205,18 @@ class PathFollowing3D(PathFollowingLaw):
         p = np.asarray(p_I, dtype=float)
         R_BI = np.asarray(R_BI, dtype=float)
         v_b = np.asarray(v_flu, dtype=float)
-        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(R_BI)) and np.all(np.isfinite(v_b))):
+        if not (np.isfinite(p).all() and np.isfinite(R_BI).all() and np.isfinite(v_b).all()):
             raise NonFiniteInputError(f"path following: non-finite input p={p}, v={v_b}, R_BI finite="
                                       f"{bool(np.all(np.isfinite(R_BI)))}")
         g = self.gains
-        gam = float(np.clip(self.gamma, self.path.t0, self.path.tf))
-        p_d = np.asarray(self.path(gam), dtype=float)
-        dp = np.asarray(self.path.velocity(gam), dtype=float)
+        gam = float(min(max(self.gamma, self.path.t0), self.path.tf))  # np.clip's value, without its overhead
+        p_d, dp = self._position_velocity(gam)
         R_TI = path_frame(dp)
         t1 = R_TI[:, 0]
         R_WB = flow_frame(v_b)
         R_WI = R_BI @ R_WB
-        speed = float(np.linalg.norm(v_b))
-        gamma_dot = max(g.gamma_dot_min, float((speed * R_WI[:, 0] + g.k_gamma * (p - p_d)) @ t1)
-                        / float(np.linalg.norm(dp)))
+        speed = _norm(v_b)
+        gamma_dot = max(g.gamma_dot_min, float((speed * R_WI[:, 0] + g.k_gamma * (p - p_d)) @ t1) / _norm(dp))
         p_T = R_TI.T @ (p - p_d)
         R_DT = desired_frame(p_T[1], p_T[2], g.d)
         R_tilde = R_DT.T @ R_TI.T @ R_WI
@@ -232,6 +236,14 @@ class PathFollowing3D(PathFollowingLaw):
         self.gamma = self.gamma + g.Ts * gamma_dot
         self._R_TI_prev, self._R_DT_prev = R_TI, R_DT
         return out
+
+    def _position_velocity(self, gam: float) -> tuple[np.ndarray, np.ndarray]:
+        """(p_d, p_d') at virtual time ``gam``: one de Casteljau pass for a Bernstein path
+        (``BernsteinPath.position_velocity``), else the path's two calls."""
+        pv = getattr(self.path, "position_velocity", None)
+        if pv is not None:
+            return pv(gam)
+        return np.asarray(self.path(gam), dtype=float), np.asarray(self.path.velocity(gam), dtype=float)
 
     def _analytic_omega_T(self, gam: float, dp: np.ndarray, gamma_dot: float) -> np.ndarray:
         """Exact angular velocity of the horizontal-normal frame in T (SPEC 3.2)."""

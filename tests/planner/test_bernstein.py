@@ -1,6 +1,7 @@
 """Bernstein identities and the geometric queries of BernsteinPath."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +48,18 @@ def test_shapes_and_end_point_interpolation():
     # end velocity rule p'(t0) = N (c1 - c0) / (tf - t0)
     np.testing.assert_allclose(P.velocity(P.t0),
                                P.degree * (P.control_points[1] - P.control_points[0]) / P.span)
+
+
+@pytest.mark.parametrize("n", [1, 2, 12])
+def test_position_velocity_in_one_pass(n):
+    """The path follower's one-pass (p, p'): p bit for bit the path's own, p' the derivative path's to round-off,
+    clamped to [t0, tf] outside it like both."""
+    P = random_path(n=n)
+    for t in list(np.linspace(P.t0, P.tf, 41)) + [P.t0 - 3.0, P.tf + 3.0]:
+        p, v = P.position_velocity(t)
+        assert np.array_equal(p, P(t)), t
+        np.testing.assert_allclose(v, P.velocity(t), rtol=0, atol=1e-12 * np.abs(P.velocity(t)).max())
+    assert np.all(np.isnan(P.position_velocity(math.nan)[0]))
 
 
 @pytest.mark.parametrize("order", [1, 2, 3])
