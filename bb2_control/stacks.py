@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -32,14 +32,14 @@ from bb2_control.errors import ControlConfigError, NonFiniteInputError, UnknownS
 from bb2_control.l1_adaptive import L1Augmentation
 from bb2_control.los import LineOfSightDepth, LOSGains
 from bb2_control.mixer import PlaneMixer
-from bb2_control.path_following import PathFollowing3D, PFGains, flow_to_body_rates
+from bb2_control.path_following import PathFollowing3D, PFGains, flow_to_body_rates, prepare_steps
 from bb2_sim import frames
 from bb2_sim.state import VehicleState
 
 __all__ = [
     "ControlOutput", "SpeedCommand", "RateInnerLoop", "DepthHeadingInnerLoop", "Stack",
     "RatePathFollowingStack", "LosDepthHeadingStack", "available_stacks", "resolve_config", "build_stack",
-    "build_mixer", "build_speed_command", "mixer_from_config",
+    "build_mixer", "build_speed_command", "mixer_from_config", "prepare_stacks",
 ]
 
 _SECTION_FILES = {"guidance": "guidance", "l1": "l1_configs", "autopilot": "autopilots", "mixer": "mixer"}
@@ -175,6 +175,7 @@ class Stack:
         self.mixer = mixer_from_config(config)
         self.speed = SpeedCommand.from_config(require(config, "speed", f"stack {name}"))
         self._last: ControlOutput | None = None
+        self._prepared_inputs: tuple[float, bytes, dict[str, Any]] | None = None   # see prepare_stacks
 
     def reset(self) -> None:
         """Every piece back to its initial state (subclasses set ``guidance`` and ``inner``)."""
@@ -183,6 +184,7 @@ class Stack:
         self.mixer.reset()
         self.speed.reset()
         self._last = None
+        self._prepared_inputs = None
 
     # -- inputs in the stack frame
     def inputs(self, s: VehicleState) -> dict[str, Any]:
@@ -197,13 +199,19 @@ class Stack:
 
     def step(self, state: VehicleState) -> ControlOutput:
         """One control tick for the vehicle state (native frames); call every Ts."""
-        if not np.all(np.isfinite(state.as_vector())) or not math.isfinite(state.t):
+        vec = state.as_vector()
+        prepared, self._prepared_inputs = self._prepared_inputs, None
+        if not np.isfinite(vec).all() or not math.isfinite(state.t):
             if self.nan_policy == "hold" and self._last is not None:
                 return replace(self._last, held=True)
             raise NonFiniteInputError(
                 f"stack {self.name}: non-finite vehicle state at t={state.t}: {state.as_vector()}"
                 + (" (nan_policy 'hold' has no previous output yet)" if self.nan_policy == "hold" else ""))
-        out = self._step(state, self.inputs(state))
+        if prepared is not None and prepared[0] == state.t and prepared[1] == vec.tobytes():
+            x = prepared[2]
+        else:
+            x = self.inputs(state)
+        out = self._step(state, x)
         self._last = out
         return out
 
@@ -264,6 +272,29 @@ class LosDepthHeadingStack(Stack):
             u_ad=u, dV_deg=dV, dH_deg=dH, planes_deg=self.mixer.step(dV, dH), rps=self.speed.step(),
             gamma=los.gamma, gamma_dot=los.gamma_dot, p_d_native=self._M @ los.p_d,
             e_horizontal_m=los.y_T, e_vertical_m=los.z_err, finished=los.finished)
+
+
+def prepare_stacks(stacks: Sequence[Stack], states: Sequence[VehicleState]) -> None:
+    """Prepare the next :meth:`Stack.step` of many stacks, each for its state: the rate stacks' path-following
+    laws compute their tick together (:func:`~bb2_control.path_following.prepare_steps`, ~10 us per law for 64
+    laws against 40 us alone).  Each stack's ``step(state)`` then gives what it gives alone, bit for bit; a stack
+    stepped with another state computes it alone.  (The batch of missions calls this every tick.)"""
+    laws, ps, Rs, vs = [], [], [], []
+    for stack, state in zip(stacks, states):
+        stack._prepared_inputs = None
+        if not isinstance(stack, RatePathFollowingStack):
+            continue
+        vec = state.as_vector()
+        if not (np.isfinite(vec).all() and math.isfinite(state.t)):
+            continue
+        x = stack.inputs(state)
+        stack._prepared_inputs = (state.t, vec.tobytes(), x)
+        laws.append(stack.guidance)
+        ps.append(x["p"])
+        Rs.append(x["R_BI"])
+        vs.append(x["v_flu"])
+    if laws:
+        prepare_steps(laws, np.array(ps), np.array(Rs), np.array(vs))
 
 
 def _check_Ts(stack: Stack, *others: Any) -> None:

@@ -81,7 +81,9 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[M
     ``model``: the ROM (:class:`bb2_sim.model.BB2Model`, calm) of their hull and profile; default built from the
     first mission's.  Raises ValueError if a mission cannot fly in a batch (:func:`batch_refusal`) or the missions
     differ in hull or profile."""
+    from bb2_control.stacks import prepare_stacks
     from bb2_sim.batch import BatchModel, BatchSimulator
+    from bb2_sim.state import VehicleState
     from bb2_sim.model import BB2Model
     from bb2_sim.profiles import get_profile
     from bb2_sim.waves import wave_for_sea_state
@@ -115,6 +117,8 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[M
     while running:
         ticks: dict[int, Any] = {}
         clear = _clearances(runners, running, terrains)
+        prepare_stacks([runners[i].stack for i in running],
+                       [VehicleState.from_vector(runners[i].sim.t, runners[i].sim.x) for i in running])
         for i in running:
             tick = runners[i].begin_tick(clear.get(i))
             if isinstance(tick, MissionStep):

@@ -12,11 +12,16 @@ from bb2_control.config import load_data
 from bb2_control.errors import ControlConfigError, NonFiniteInputError
 from bb2_control.los import LineOfSightDepth, LOSGains, wrap_to_pi
 from bb2_control.path_following import (
+    PI_R,
     PFGains,
     PathFollowing3D,
     attitude_error,
+    desired_frame,
     flow_frame,
     flow_to_body_rates,
+    path_frame,
+    prepare_steps,
+    vee,
 )
 from bb2_sim import frames
 
@@ -92,6 +97,93 @@ def test_flow_frame_and_body_rate_conversion():
     assert R[2, 1] == 0.0 and R[1, 1] > 0          # w2 horizontal in body, to port
     w_b = R @ np.array([0.0, 0.01, 0.02])
     assert flow_to_body_rates(0.01, 0.02, v) == pytest.approx((-w_b[1], w_b[2]))
+
+
+def _matrix_form_tick(law: PathFollowing3D, p, R_BI, v, prev):
+    """The law's tick written with the frame functions and matrix products (the paper's form, with the angles of
+    the flow frame): (q_c, r_c, gamma_dot, p_T, R_TI, R_DT)."""
+    g = law.gains
+    gam = min(max(law.gamma, law.path.t0), law.path.tf)
+    p_d, dp = law.path(gam), law.path.velocity(gam)
+    R_TI = path_frame(dp)
+    R_WI = R_BI @ flow_frame(v)
+    gamma_dot = max(g.gamma_dot_min, float((np.linalg.norm(v) * R_WI[:, 0] + g.k_gamma * (p - p_d)) @ R_TI[:, 0])
+                    / np.linalg.norm(dp))
+    p_T = R_TI.T @ (p - p_d)
+    R_DT = desired_frame(p_T[1], p_T[2], g.d)
+    R_tilde = R_DT.T @ R_TI.T @ R_WI
+    _, e_R = attitude_error(R_tilde)
+    pT, pD = prev if prev is not None else (R_TI, R_DT)
+    w_T, w_D = vee(R_TI.T @ (R_TI - pT) / g.Ts), vee(R_DT.T @ (R_DT - pD) / g.Ts)
+    w_c = PI_R @ R_tilde.T @ (R_DT.T @ w_T + w_D) - 2.0 * g.k_R * e_R
+    return w_c[0], w_c[1], gamma_dot, p_T, R_TI, R_DT
+
+
+def _drifting_inputs(path, rng, gam):
+    """A vehicle near the path at gam: offset up to 30 m, heading and flow angles of a few degrees."""
+    t1 = path.tangent(gam)
+    R = Rotation.from_euler("zyx", [math.atan2(t1[1], t1[0]) + rng.normal(0, 0.2), rng.normal(0, 0.1),
+                                    rng.normal(0, 0.05)]).as_matrix()
+    p = np.asarray(path(gam)) + rng.normal(0, 10.0, 3)
+    v = np.array([rng.uniform(2.0, 6.0), rng.normal(0, 0.3), rng.normal(0, 0.3)])
+    return p, R, v
+
+
+def test_the_tick_in_components_is_the_matrix_form_of_the_law():
+    """step() computes on components (no atan2: the flow frame from the velocity's ratios); over random states
+    near three paths it gives the matrix form's commands to round-off, first tick and later ones."""
+    rng = np.random.default_rng(11)
+    for name in ("circle_r400", "synthetic_canyon", "straight_line_x4000"):
+        path = planner.load_path(name, frame="native")
+        law = PathFollowing3D(path, PFGains(**{**PFGains.from_config().__dict__, "d": rng.uniform(150, 350)}))
+        prev = None
+        for _ in range(60):
+            p, R, v = _drifting_inputs(path, rng, law.gamma + 3.0)
+            q, r, gdot, p_T, R_TI, R_DT = _matrix_form_tick(law, p, R, v, prev)
+            out = law.step(p, R, v)
+            assert out.q_c == pytest.approx(q, rel=1e-9, abs=1e-13) and out.r_c == pytest.approx(r, rel=1e-9, abs=1e-13)
+            assert out.gamma_dot == pytest.approx(gdot, rel=1e-12)
+            np.testing.assert_allclose(out.p_T, p_T, rtol=0, atol=1e-9)
+            prev = (R_TI, R_DT)
+
+
+def _fields(out):
+    return (out.q_c, out.r_c, out.gamma, out.gamma_dot, out.Psi, out.finished, out.p_d.tolist(), out.p_T.tolist(),
+            out.e_R.tolist())
+
+
+def test_laws_prepared_together_give_each_its_own_tick_bit_for_bit():
+    """prepare_steps over laws of three paths (two degrees), four look-aheads, one law reset mid-run (its first
+    tick among others' later ones), an analytic one and a non-finite input (both left alone), and one stepped with
+    other inputs than prepared: every tick equals its twin's stepped alone, to the last bit."""
+    rng = np.random.default_rng(5)
+    paths = [planner.load_path(n, frame="native") for n in ("circle_r400", "synthetic_canyon", "synthetic_canyon",
+                                                           "straight_line_x4000", "circle_r400", "synthetic_canyon")]
+    base = PFGains.from_config().__dict__
+    gains = [PFGains(**{**base, "d": d}) for d in (200.0, 250.0, 300.0, 275.0, 250.0)]
+    gains.append(PFGains(**{**base, "frame_rates": "analytic"}))
+    together = [PathFollowing3D(pa, g) for pa, g in zip(paths, gains)]
+    alone = [PathFollowing3D(pa, g) for pa, g in zip(paths, gains)]
+    for k in range(80):
+        ins = [_drifting_inputs(law.path, rng, law.gamma + 2.0) for law in alone]
+        if k == 30:
+            together[2].reset()
+            alone[2].reset()
+        if k == 40:
+            ins[1] = (np.array([np.nan, 0.0, 0.0]), ins[1][1], ins[1][2])
+        ok = prepare_steps(together, np.array([i[0] for i in ins]), np.array([i[1] for i in ins]),
+                           np.array([i[2] for i in ins]))
+        assert ok.tolist() == [True, k != 40, True, True, True, False], k
+        if k == 50:                      # stepped with other inputs than it was prepared for: computed alone
+            ins[3] = (ins[3][0] + 1.0, ins[3][1], ins[3][2])
+        for law_t, law_a, (p, R, v) in zip(together, alone, ins):
+            if k == 40 and law_a is alone[1]:
+                for law in (law_t, law_a):
+                    with pytest.raises(NonFiniteInputError):
+                        law.step(p, R, v)
+                continue
+            assert _fields(law_t.step(p, R, v)) == _fields(law_a.step(p, R, v)), k
+            assert law_t.gamma == law_a.gamma
 
 
 def test_analytic_frame_rates_match_finite_differences(circle_native):

@@ -174,3 +174,26 @@ def test_speed_data_carried_from_shared(shared):
     assert st["los_2023"]["speed"]["v_ref_mps"] == prop["v_ref_mps_2023"]
     assert build_stack("los_2023").speed.step() == pytest.approx(prop["n_rps_2023"], abs=1e-5)
     assert build_stack("rate_2022").speed.step() == pytest.approx(prop["n_rps_2022_pf"], abs=1e-9)
+
+
+def test_stacks_prepared_together_step_as_alone():
+    """prepare_stacks (the mission batch's tick): rate stacks of two look-aheads and a LOS stack; each stack's
+    step of the prepared state is its twin's alone to the last bit, and one stepped with another state than it
+    was prepared for computes it alone."""
+    from bb2_control.stacks import prepare_stacks
+
+    specs = ["rate_2022", {"base": "rate_2022", "guidance": {"d_m": 300.0}}, "los_2023",
+             {"base": "rate_2022", "adaptation": False}]
+    together = [build_stack(s) for s in specs]
+    alone = [build_stack(s) for s in specs]
+    runs = [list(_states(60, seed=k)) for k in range(len(specs))]
+    for k in range(60):
+        states = [r[k] for r in runs]
+        prepare_stacks(together, states)
+        assert [s._prepared_inputs is not None for s in together] == [True, True, False, True]
+        if k == 20:   # another state than prepared
+            states[1] = VehicleState.from_vector(states[1].t, states[1].as_vector() + 0.01)
+        for a, b, s in zip(together, alone, states):
+            oa, ob = a.step(s), b.step(s)
+            fa, fb = ([o.q_c, o.r_c, o.dV_deg, o.dH_deg, o.gamma, o.gamma_dot, *o.planes_deg] for o in (oa, ob))
+            assert np.array_equal(fa, fb, equal_nan=True), k
