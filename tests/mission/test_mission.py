@@ -312,3 +312,18 @@ def test_cli_header_says_the_sea_and_current(tmp_path, capsys, sea_doc, current_
     assert run_mission_cli(argparse.Namespace(file=str(f), out=None, no_adaptation=False, quiet=False)) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("mission short: path ") and lines[1] == f"  {words}", lines[:2]
+
+
+def test_the_synthetic_canyon_is_generated_once_and_shared_read_only():
+    """Missions on the synthetic canyon share one terrain per process (a campaign worker loads hundreds), equal
+    to a freshly generated one and read-only, so no mission can change another's sea floor."""
+    from bb2_planner.terrain import synthetic_canyon
+
+    a, b = (load_mission(MISSIONS_DIR / "canyon.yaml") for _ in range(2))
+    assert a.terrain is b.terrain
+    fresh = synthetic_canyon().terrain
+    for name in ("x", "y", "z"):
+        arr = getattr(a.terrain, name)
+        assert np.array_equal(arr, getattr(fresh, name)) and not arr.flags.writeable
+    with pytest.raises(ValueError):
+        a.terrain.z[0, 0] = 0.0
