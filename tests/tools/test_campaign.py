@@ -14,6 +14,7 @@
 """
 from __future__ import annotations
 
+import collections
 import json
 import os
 import shutil
@@ -523,6 +524,28 @@ def test_mission_batches_give_the_table_of_runs_flown_one_by_one(tmp_path):
     status = [row["status"] for row in alone]
     assert status.count("ok") >= 16 and "grounded" in status, status
     assert {row["sea_state"] for row in alone} == {0, 3, 5}
+
+
+def test_chunks_are_equal_batches_to_the_end():
+    """The engines cut a campaign into equal chunks of at most --batch, a multiple of the workers in number, from the
+    campaign's size (a share recomputed from the runs left shrank the last chunks below BATCH_MIN: 64 runs on two
+    workers flew as 32 + 16 together and 16 one by one)."""
+    from bb2_tools.campaign.engines import _take, chunk_size
+    from bb2_tools.campaign.worker import BATCH_MIN
+
+    spec = parse_spec(MISSION_BATCH_SPEC)
+    for total, workers, batch, want in ((64, 2, 128, 32), (1000, 2, 128, 125), (1000, 4, 128, 125), (300, 2, 128, 75),
+                                        (40, 2, 128, 20), (20, 2, 128, 1), (64, 2, 1, 1), (256, 2, 128, 128)):
+        size = chunk_size(spec, total, workers, batch)
+        assert size == want, (total, workers, batch, size)
+        pending = collections.deque(range(total))
+        chunks = []
+        while pending:
+            chunks.append(_take(pending, size))
+        assert sorted(i for c in chunks for i in c) == list(range(total))
+        if size > 1:   # every chunk a full batch (the last within one run of the others)
+            assert len(chunks) % workers == 0 and min(map(len, chunks)) >= max(BATCH_MIN, size - len(chunks))
+    assert chunk_size(spec, 0, 2) == 1
 
 
 def test_a_chunk_of_missions_flies_as_one_batch(monkeypatch):
