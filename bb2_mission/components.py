@@ -78,6 +78,23 @@ class HullProbes:
         return x12[0:3] + self.points_body @ R.T
 
 
+_PROBES: dict[int, tuple[Any, HullProbes]] = {}
+
+
+def hull_probes(surfaces: Any) -> HullProbes:
+    """The :class:`HullProbes` of ``surfaces``, built once per surfaces object (a convex hull: ~15 ms) and shared,
+    read-only, by the missions on that model: a batch of missions then checks its clearances together."""
+    hit = _PROBES.get(id(surfaces))
+    if hit is not None and hit[0] is surfaces:
+        return hit[1]
+    probes = HullProbes(surfaces)
+    probes.points_body.setflags(write=False)
+    if len(_PROBES) >= 8:
+        _PROBES.pop(next(iter(_PROBES)))
+    _PROBES[id(surfaces)] = (surfaces, probes)
+    return probes
+
+
 @dataclass
 class MissionComponents:
     """Everything an in-process run is built from (:class:`~bb2_mission.runner.MissionRunner`).
@@ -103,7 +120,7 @@ def mission_components(m: Mission, model: Any = None) -> MissionComponents:
         model = build_model(m)
     stack = build_mission_stack(m)
     x0 = initial_state(m)
-    probes = HullProbes(model.surfaces)
+    probes = hull_probes(model.surfaces)
     max_z = check_initial_state(m, model.surfaces, probes)
     return MissionComponents(m, model, Simulator(model, x0), stack, x0, probes, float(max_z))
 
@@ -124,7 +141,7 @@ def check_initial_state(m: Mission, surfaces: Any = None, probes: HullProbes | N
             from bb2_sim.geometry import load_hull
 
             surfaces = load_hull(m.hull)
-        probes = HullProbes(surfaces)
+        probes = hull_probes(surfaces)
     x0 = initial_state(m)
     where = str(m.source_file) if m.source_file else m.name
     max_z = broaching_limit(m, probes)

@@ -37,7 +37,9 @@ ENU_TO_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 
 
 def rotation_native(phi: float, theta: float, psi: float) -> np.ndarray:
-    """R = Rz(psi) Ry(theta) Rx(phi): native body components -> native earth components (SPEC 1.3)."""
+    """R = Rz(psi) Ry(theta) Rx(phi): native body components -> native earth components (SPEC 1.3).
+
+    Angles as arrays of N boats give (3, 3, N), each boat's matrix bit for bit its own call's."""
     cf, sf = np.cos(phi), np.sin(phi)
     ct, st = np.cos(theta), np.sin(theta)
     cs, ss = np.cos(psi), np.sin(psi)
