@@ -95,7 +95,8 @@ class SpeedCommand:
         """Stateless."""
 
     def step(self) -> float:
-        return float(np.clip(abs(self.v_ref_mps) / self.advance_m_per_rev, self.n_min_rps, self.n_max_rps))
+        # np.clip's value for a float, without its overhead (the stack steps this every tick)
+        return float(min(max(abs(self.v_ref_mps) / self.advance_m_per_rev, self.n_min_rps), self.n_max_rps))
 
 
 class RateInnerLoop:

@@ -68,7 +68,7 @@ class Counter(StrEnum):
 def clamp_planes_deg(planes_deg: np.ndarray, limit_deg: float) -> np.ndarray:
     """Plane commands clamped to the ROM's plane limit (what reaches the actuators; the gate's and the
     library runner's one rule, so the graph and the runner integrate the same commands)."""
-    return np.clip(planes_deg, -limit_deg, limit_deg)
+    return np.minimum(np.maximum(planes_deg, -limit_deg), limit_deg)   # np.clip's values, a third of its cost
 
 
 def clamp_rps(rps: float, limits: tuple[float, float]) -> float:
