@@ -14,6 +14,11 @@ sign-unambiguous body rates (q_up bow-up, r_left bow-to-port) used by the rate L
 
 Note the sign of q_c: it is a rotation about w2 (port), i.e. **bow-down positive**; q_up = -q_c for
 zero flow angles.
+
+The frame functions (:func:`path_frame`, :func:`flow_frame`, :func:`desired_frame`, :func:`attitude_error`,
+:func:`vee`) state the law as the paper writes it, in matrices; the tick itself runs on components (``_law_tick``,
+the same numbers to round-off, tested against the matrix form) so that one law on floats and many laws on arrays
+(:func:`prepare_steps`, the batch of missions) give the same bits.
 """
 from __future__ import annotations
 
@@ -367,7 +372,8 @@ def prepare_steps(laws: Sequence["PathFollowing3D"], p_I: np.ndarray, R_BI: np.n
     frame rates, a path without Bernstein control points, non-finite inputs, an undefined frame (the single step
     then raises its error).  Returns the mask of the laws prepared.
 
-    About 4 us per law for 64 laws against 50 us alone (the canyon's degree-12 path)."""
+    About 10 us per law for 64 laws (with the step that takes the tick) against 40 us alone (the canyon's
+    degree-12 path)."""
     p_I, R_BI, v_flu = (np.asarray(a, dtype=float) for a in (p_I, R_BI, v_flu))
     n = len(laws)
     ok = np.zeros(n, dtype=bool)

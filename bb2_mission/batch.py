@@ -3,7 +3,9 @@
 :func:`run_missions_batch` gives every mission the :class:`~bb2_mission.runner.MissionResult` that
 :func:`~bb2_mission.runner.run_mission` gives it alone, bit for bit (trajectory and summary; the wall time is the
 mission's share of the batch's).  Each tick, every running mission does its own half before the ROM step
-(:meth:`MissionRunner.begin_tick`: state, clearances, its stack, its limits), then the ROMs of all of them take one
+(:meth:`MissionRunner.begin_tick`: state, clearances, its stack, its limits; the clearances of all boats and
+their path-following laws computed together beforehand, :func:`_clearances` and
+:func:`bb2_control.stacks.prepare_stacks`), then the ROMs of all of them take one
 step of the exact batch ROM (:class:`bb2_sim.batch.BatchSimulator`, ``exact=True``: bit for bit the single
 simulator), then each does its half after it (:meth:`MissionRunner.finish_tick`).  A mission that has ended is
 retired from the batch; the others go on.
@@ -83,9 +85,9 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[M
     differ in hull or profile."""
     from bb2_control.stacks import prepare_stacks
     from bb2_sim.batch import BatchModel, BatchSimulator
-    from bb2_sim.state import VehicleState
     from bb2_sim.model import BB2Model
     from bb2_sim.profiles import get_profile
+    from bb2_sim.state import VehicleState
     from bb2_sim.waves import wave_for_sea_state
 
     M = list(missions)
