@@ -63,7 +63,8 @@ def main(argv: list[str] | None = None) -> int:
                         "handshake (the stamp of /bb2/state_native)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: ROS_DOMAIN_ID)")
     p.add_argument("--realtime-priority", type=int, default=0, metavar="N",
-                   help="SCHED_FIFO priority 1-99 of the thread that runs the callbacks, once everything is built "
+                   help="SCHED_FIFO priority 1-99 of the thread that runs the callbacks and of the middleware's "
+                        "threads, once everything is built "
                         "(0: normal scheduling): a real autopilot has a computer of its own; one sharing the "
                         "bench's CPU with other work must not be starved past the simulator's command timeout")
     args = p.parse_args(argv)
@@ -206,15 +207,11 @@ def main(argv: list[str] | None = None) -> int:
     executor.add_node(node)
     source = {"odometry": "/bb2/odom", "native": "/bb2/state_native",
               "sensors": f"/bb2/sensors/* (suite {nav.suite.name if nav else ''}, tick {args.tick})"}
-    if args.realtime_priority:  # this thread only (the callbacks), now that the imports and builds are done
-        import os
+    if args.realtime_priority:  # now that the imports and builds are done: this thread (the callbacks) and the
+        # middleware's (Fast DDS's reception threads, which hand it the messages); a refusal changes none of them
+        from bb2_ros.node_common import set_callback_priority
 
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.realtime_priority))
-            print(f"external autopilot: callbacks at SCHED_FIFO priority {args.realtime_priority}", flush=True)
-        except (OSError, AttributeError) as exc:
-            print(f"external autopilot: SCHED_FIFO {args.realtime_priority} refused ({exc}): normal scheduling",
-                  flush=True)
+        print(f"external autopilot: callbacks at {set_callback_priority(args.realtime_priority)}", flush=True)
     print(f"external autopilot ready: stack {stack.name}, state from {source[args.state_source]}", flush=True)
     try:
         while not stop.is_set():

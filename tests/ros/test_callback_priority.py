@@ -169,3 +169,56 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
         codes = [p.wait(15) for p in procs]
         probe.close()
     assert codes == [0] * len(procs), [p.communicate()[0] for p in procs]
+
+
+@pytest.mark.ros
+def test_the_example_external_autopilot_puts_its_callbacks_and_the_middleware_at_its_realtime_priority(tmp_path):
+    """``examples/hil/external_autopilot.py --realtime-priority N`` (a user's autopilot beside the graph): its
+    executor thread and Fast DDS's threads at SCHED_FIFO N (they hand it the messages), said on its output; refused,
+    said and nothing changed."""
+    pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
+    import threading
+
+    from rosenv import claimed_domain, ros_env  # tests/rosenv.py
+
+    from test_nodes import MISSION  # tests/ros/test_nodes.py
+
+    mission = tmp_path / "circle.yaml"
+    mission.write_text(MISSION)
+    p = subprocess.Popen([sys.executable, str(REPO / "examples" / "hil" / "external_autopilot.py"), "--mission",
+                          str(mission), "--realtime-priority", "17"], cwd=REPO, env=ros_env(claimed_domain()),
+                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    killer = threading.Timer(90.0, p.kill)   # a hung start fails the test instead of hanging it
+    killer.start()
+    lines: list[str] = []
+    try:
+        for line in p.stdout:
+            lines.append(line)
+            if "external autopilot ready" in line:
+                break
+        said = next((ln for ln in lines if "callbacks at" in ln), "")
+        threads = {}
+        for t in os.listdir(f"/proc/{p.pid}/task"):
+            try:
+                comm = Path(f"/proc/{p.pid}/task/{t}/comm").read_text().strip()
+                threads[int(t)] = (comm, os.sched_getscheduler(int(t)) & ~getattr(os, "SCHED_RESET_ON_FORK", 0),
+                                   os.sched_getparam(int(t)).sched_priority)
+            except (OSError, ProcessLookupError):
+                continue
+        dds = [v for v in threads.values() if v[0].startswith("dds.")]
+        assert dds, threads
+        if _may_use_fifo():
+            assert f"callbacks at SCHED_FIFO 17 ({len(dds) + 1} threads" in said, lines
+            assert threads[p.pid][1:] == (os.SCHED_FIFO, 17), threads
+            assert all(v[1:] == (os.SCHED_FIFO, 17) for v in dds), threads
+        else:
+            assert "callbacks at normal (SCHED_FIFO 17 refused: " in said, lines
+            assert all(v[1] == os.SCHED_OTHER for v in threads.values()), threads
+        p.send_signal(signal.SIGINT)
+        rest, _ = p.communicate(timeout=30)
+    finally:
+        killer.cancel()
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 0, "".join(lines) + (rest if p.returncode is not None else "")
