@@ -59,6 +59,19 @@ def _child(*, own_rt: bool = False, drop: bool = False) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def _threads(pid: int) -> dict[int, tuple[str, int, int]]:
+    """Each thread of process ``pid``: (name, scheduling policy, priority), as the kernel reports them."""
+    threads = {}
+    for t in os.listdir(f"/proc/{pid}/task"):
+        try:
+            comm = Path(f"/proc/{pid}/task/{t}/comm").read_text().strip()
+            threads[int(t)] = (comm, os.sched_getscheduler(int(t)) & ~getattr(os, "SCHED_RESET_ON_FORK", 0),
+                               os.sched_getparam(int(t)).sched_priority)
+        except (OSError, ProcessLookupError):
+            continue
+    return threads
+
+
 def _may_use_fifo() -> bool:
     try:
         import resource
@@ -139,14 +152,7 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
         assert composed == "normal (composed with the simulator in lockstep: its lockstep_priority 0 decides)", composed
         assert os.sched_getscheduler(procs[-1].pid) == os.SCHED_OTHER
         pid = procs[0].pid
-        threads = {}
-        for t in os.listdir(f"/proc/{pid}/task"):
-            try:
-                comm = Path(f"/proc/{pid}/task/{t}/comm").read_text().strip()
-                threads[int(t)] = (comm, os.sched_getscheduler(int(t)) & ~getattr(os, "SCHED_RESET_ON_FORK", 0),
-                                   os.sched_getparam(int(t)).sched_priority)
-            except (OSError, ProcessLookupError):
-                continue
+        threads = _threads(pid)
         dds = {t: v for t, v in threads.items() if v[0].startswith("dds.")}
         assert dds, threads  # Fast DDS names its threads dds.*
         if _may_use_fifo():
@@ -197,14 +203,7 @@ def test_the_example_external_autopilot_puts_its_callbacks_and_the_middleware_at
             if "external autopilot ready" in line:
                 break
         said = next((ln for ln in lines if "callbacks at" in ln), "")
-        threads = {}
-        for t in os.listdir(f"/proc/{p.pid}/task"):
-            try:
-                comm = Path(f"/proc/{p.pid}/task/{t}/comm").read_text().strip()
-                threads[int(t)] = (comm, os.sched_getscheduler(int(t)) & ~getattr(os, "SCHED_RESET_ON_FORK", 0),
-                                   os.sched_getparam(int(t)).sched_priority)
-            except (OSError, ProcessLookupError):
-                continue
+        threads = _threads(p.pid)
         dds = [v for v in threads.values() if v[0].startswith("dds.")]
         assert dds, threads
         if _may_use_fifo():
