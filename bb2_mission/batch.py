@@ -180,9 +180,8 @@ def _shared_terrains(runners: list[MissionRunner]) -> list[Any]:
 
 def _clearances(runners: list[MissionRunner], running: list[int], terrains: list[Any]) -> dict[int, Any]:
     """The clearances of the running runners' states, as each runner's own call gives them (bit for bit), for all
-    runners of a shared terrain and hull probes at once: their probe points rotated together (the rotation's
-    products element by element, one matrix product per boat), the terrain interpolated once for all points, the
-    lowest hull clearance per boat a masked minimum."""
+    runners of a shared terrain and hull probes at once (``probe_points`` and ``clearances_at`` on the stacked
+    states, the terrain interpolated once for all points)."""
     from bb2_mission.components import terrain_elevation
 
     out: dict[int, Any] = {}
@@ -191,26 +190,13 @@ def _clearances(runners: list[MissionRunner], running: list[int], terrains: list
         if terrains[i] is not None:
             groups.setdefault((id(terrains[i]), id(runners[i].c.probes)), []).append(i)
     for members in groups.values():
-        pts = _probe_points([runners[i].sim.x for i in members], runners[members[0]].c.probes.points_body)
+        first = runners[members[0]]
+        pts = first.probe_points(np.array([runners[i].sim.x for i in members]))
         zt = terrain_elevation(terrains[members[0]], pts[..., 0].ravel(), pts[..., 1].ravel()).reshape(pts.shape[:2])
-        cl = pts[..., 2] - zt
-        hull_cl = cl[:, 1:]
-        finite = np.isfinite(hull_cl)
-        hull = np.where(finite.any(axis=1), np.where(finite, hull_cl, np.inf).min(axis=1), np.nan)
-        for i, z0, c0, h in zip(members, zt[:, 0].tolist(), cl[:, 0].tolist(), hull.tolist()):
-            out[i] = (z0, c0, h)
+        z0, c0, hull = first.clearances_at(pts, zt)
+        for i, a, b, c in zip(members, z0.tolist(), c0.tolist(), hull.tolist()):
+            out[i] = (a, b, c)
     return out
-
-
-def _probe_points(xs: list[np.ndarray], points_body: np.ndarray) -> np.ndarray:
-    """(boats, 1 + probes, 3): each boat's CG then its hull probes in the native earth frame, as
-    ``MissionRunner.probe_points`` gives them (``rotation_native``'s products on arrays over boats)."""
-    from bb2_sim.frames import rotation_native
-
-    X = np.array(xs)
-    R = rotation_native(X[:, 3], X[:, 4], X[:, 5]).transpose(2, 0, 1)
-    world = X[:, None, 0:3] + np.matmul(points_body, R.transpose(0, 2, 1))
-    return np.concatenate([X[:, None, 0:3], world], axis=1)
 
 
 class _Rows:

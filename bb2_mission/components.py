@@ -71,11 +71,14 @@ class HullProbes:
         self.keel_m = float(-V[:, 2].min())                 #: lowest point below the CG, m
 
     def world(self, x12: np.ndarray) -> np.ndarray:
-        """Probe positions (n, 3) in the native earth frame for state x12."""
+        """Probe positions (n, 3) in the native earth frame for state x12; for states (N, 12) of N boats (N, n, 3),
+        each boat's bit for bit its own call's (one matrix product per boat)."""
         from bb2_sim.frames import rotation_native
 
-        R = rotation_native(x12[3], x12[4], x12[5])
-        return x12[0:3] + self.points_body @ R.T
+        R = rotation_native(x12[..., 3], x12[..., 4], x12[..., 5])
+        if x12.ndim == 1:
+            return x12[0:3] + self.points_body @ R.T
+        return x12[:, None, 0:3] + np.matmul(self.points_body, R.transpose(2, 1, 0))
 
 
 _PROBES: dict[int, tuple[Any, HullProbes]] = {}

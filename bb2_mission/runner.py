@@ -126,17 +126,22 @@ class MissionRunner:
         return self.clearances_at(pts, terrain_elevation(self.terrain, pts[:, 0], pts[:, 1]))
 
     def probe_points(self, x: np.ndarray) -> np.ndarray:
-        """The CG and the hull probes (native earth, m) of state x: row 0 the CG."""
-        return np.vstack([x[0:3], self.c.probes.world(x)])
+        """The CG and the hull probes (native earth, m) of state x: row 0 the CG.  For states (N, 12) of N boats
+        with these probes: (N, 1 + probes, 3), each boat's its own call's."""
+        return np.concatenate([x[..., None, 0:3], self.c.probes.world(x)], axis=-2)
 
     @staticmethod
-    def clearances_at(pts: np.ndarray, zt: np.ndarray) -> tuple[float, float, float]:
-        """(terrain z under the CG, CG clearance, lowest hull point's clearance) from :meth:`probe_points` and the
-        terrain elevation zt under them (the terrain's interpolation is point by point, so a batch of runners may
-        evaluate it for all their points at once)."""
-        cl = pts[:, 2] - zt
-        hull = float(np.nanmin(cl[1:])) if np.isfinite(cl[1:]).any() else math.nan
-        return float(zt[0]), float(cl[0]), hull
+    def clearances_at(pts: np.ndarray, zt: np.ndarray) -> tuple[Any, Any, Any]:
+        """(terrain z under the CG, CG clearance, lowest hull point's clearance, NaN if none is over the terrain)
+        from :meth:`probe_points` and the terrain elevation zt under them (the terrain's interpolation is point by
+        point, so a batch of runners may evaluate it for all their points at once): floats, or arrays over the
+        boats of stacked points (N, 1 + probes, 3) and elevations (N, 1 + probes)."""
+        cl = pts[..., 2] - zt
+        finite = np.isfinite(cl[..., 1:])
+        hull = np.where(finite.any(axis=-1), np.where(finite, cl[..., 1:], np.inf).min(axis=-1), np.nan)
+        if cl.ndim == 1:
+            return float(zt[0]), float(cl[0]), float(hull)
+        return zt[:, 0], cl[:, 0], hull
 
     def step(self) -> MissionStep:
         """One tick at t_n: stack output from the state, terrain checks, then the ROM step to t_n+1."""

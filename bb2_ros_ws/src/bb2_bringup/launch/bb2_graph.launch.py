@@ -43,7 +43,7 @@ from launch_ros.actions import Node
 from launch_ros.substitutions import ExecutableInPackage
 
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
-from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME
+from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
@@ -153,15 +153,16 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     # in real time the controllers' answers do not wait for a core (as bb2-launch sets them)
     rt = {"callback_priority": CALLBACK_PRIORITY_REALTIME} if time_mode == "realtime" else {}
     if compose:
-        nodes = [(exe, {**common, "use_sim_time": True, **({} if bg else rt)}) for exe, bg in controllers]
+        nodes = [(exe, {**common, "use_sim_time": True, **(rt if exe in REALTIME_CONTROLLERS else {})})
+                 for exe, _bg in controllers]
         nodes.append(("simulator", {**common, **sim_values}))
         sim = ExecuteProcess(cmd=[ExecutableInPackage("container", "bb2_ros"),
                                   *container_arguments(nodes, params, ns)],
                              name="container" + (f"_{ns}" if ns else ""), output="screen")
         actions.append(sim)
     else:
-        actions += [node("bb2_ros", exe, {"use_sim_time": True, **({} if bg else rt)}, background=bg)
-                    for exe, bg in controllers]
+        actions += [node("bb2_ros", exe, {"use_sim_time": True, **(rt if exe in REALTIME_CONTROLLERS else {})},
+                         background=bg) for exe, bg in controllers]
         sim = node("bb2_ros", "simulator", sim_values)
         actions.append(sim)
     what = "container" if compose else "simulator"
