@@ -30,6 +30,7 @@ import numpy as np
 
 from bb2_control.config import load_data, require
 from bb2_control.errors import ControlConfigError, NonFiniteInputError, PathFollowingError
+from bb2_planner.bernstein import position_velocity_points  # control may use planner types
 from bb2_sim.frames import cross as _cross  # a x b, the arithmetic of np.cross without its overhead
 
 __all__ = [
@@ -64,9 +65,8 @@ def vee(S: np.ndarray) -> np.ndarray:
 
 def flow_frame(v_flu: np.ndarray) -> np.ndarray:
     """R_WB: columns w1, w2, w3 of the flow frame in FLU body components (SPEC 1)."""
+    _check_velocity(v_flu)
     u, v, w = (float(x) for x in v_flu)
-    if math.hypot(u, v) == 0.0 and w == 0.0:
-        raise PathFollowingError("the flow frame is undefined at zero velocity")
     alpha = -math.atan2(w, math.hypot(u, v))
     beta = math.atan2(v, u)
     ca, sa, cb, sb = math.cos(alpha), math.sin(alpha), math.cos(beta), math.sin(beta)
@@ -90,10 +90,7 @@ def path_frame(dp: np.ndarray) -> np.ndarray:
     sp = _norm(dp)
     x, y, _ = dp.tolist()
     h = math.hypot(x, y)
-    if sp == 0.0:
-        raise PathFollowingError("path speed |p_d'| is zero: the path frame is undefined")
-    if h <= 1e-9 * sp:
-        raise PathFollowingError("vertical path tangent: the horizontal-normal path frame is singular")
+    _check_tangent(sp, h)
     t1 = dp / sp
     t2 = np.array([-y, x, 0.0]) / h
     return np.array([t1, t2, _cross(t1, t2)]).T
@@ -355,12 +352,21 @@ def _law_tick(p: tuple, R_BI: tuple, v: tuple, p_d: tuple, dp: tuple, R_TI_prev:
 def _check_frames(dp: np.ndarray, v_flu: np.ndarray) -> None:
     """The errors of a tick whose path or flow frame is undefined (:func:`path_frame`, :func:`flow_frame`)."""
     x, y, z = dp.tolist()
-    sp = math.sqrt(x * x + y * y + z * z)
-    if sp == 0.0:
+    _check_tangent(math.sqrt(x * x + y * y + z * z), math.sqrt(x * x + y * y))
+    _check_velocity(v_flu)
+
+
+def _check_tangent(speed: float, horizontal: float) -> None:
+    """The path frame's errors for a path speed |p_d'| and its horizontal part."""
+    if speed == 0.0:
         raise PathFollowingError("path speed |p_d'| is zero: the path frame is undefined")
-    if math.sqrt(x * x + y * y) <= 1e-9 * sp:
+    if horizontal <= 1e-9 * speed:
         raise PathFollowingError("vertical path tangent: the horizontal-normal path frame is singular")
-    if not v_flu.any():
+
+
+def _check_velocity(v_flu: np.ndarray) -> None:
+    """The flow frame's error: zero velocity."""
+    if not np.any(v_flu):
         raise PathFollowingError("the flow frame is undefined at zero velocity")
 
 
@@ -402,13 +408,7 @@ def _prepare_group(laws: list["PathFollowing3D"], p_I: np.ndarray, R_BI: np.ndar
     gam = np.minimum(np.maximum(gamma, t0), tf)
     # BernsteinPath.position_velocity over laws: the same products and sums element by element
     s = np.minimum(np.maximum((gam - t0) / span, 0.0), 1.0)[:, None, None]
-    u = 1.0 - s
-    b = c["control_points"]
-    deg = b.shape[1] - 1
-    for _ in range(deg - 1):
-        b = u * b[:, :-1] + s * b[:, 1:]
-    p_d = u[:, 0] * b[:, 0] + s[:, 0] * b[:, 1]
-    dp = (b[:, 1] - b[:, 0]) * (deg / span)[:, None]
+    p_d, dp = position_velocity_points(c["control_points"], s, span[:, None])
     sp = np.sqrt(dp[:, 0] * dp[:, 0] + dp[:, 1] * dp[:, 1] + dp[:, 2] * dp[:, 2])
     good = (sp != 0.0) & (np.sqrt(dp[:, 0] * dp[:, 0] + dp[:, 1] * dp[:, 1]) > 1e-9 * sp)
     if not good.all():               # an undefined path frame: those laws alone (they raise its error)
