@@ -119,30 +119,43 @@ class PressureIntegrator:
         if wave.calm and not clip:
             return (-rg) * (cz[:, None] * self._S0 + np.einsum("bk,bkm->bm", vz, self._S1))
         k = wave.wavenumber
-        turns = 1.0 / self._sine.turn
         # per block: row 0 = k x - w t in turn units (the phase of the wave), row 1 = z
         V = np.empty((len(vx), 2, 4))
-        V[:, 0, :3] = vx * (k * turns)
-        V[:, 0, 3] = (k * cx - wave.omega * t) * turns
+        V[:, 0, :3] = vx * (k * self.turns)
+        V[:, 0, 3] = (k * cx - wave.omega * t) * self.turns
         V[:, 1, :3] = vz
         V[:, 1, 3] = cz
+        G = self.point_sums(V, k, wave.amplitude, clip, np.empty((len(V), 6)))
+        if clip:
+            return rg * G
+        return rg * G - rg * (cz[:, None] * self._S0 + np.einsum("bk,bkm->bm", vz, self._S1))
+
+    @property
+    def turns(self) -> float:
+        """Turn units per radian of the wave phase (see :class:`bb2_sim.waves.PhaseSine`)."""
+        return 1.0 / self._sine.turn
+
+    def point_sums(self, V: np.ndarray, k: float, amplitude: float, clip: bool, out: np.ndarray) -> np.ndarray:
+        """The per-point pass of a regular wave: ``out`` (B, 6) = sum over block b of w_j FM_j, w_j = A exp(k z_j)
+        sin(phase_j) (the dynamic pressure / (rho g)); with ``clip`` max(w_j - z_j, 0) (the whole pressure / (rho
+        g), zero above the surface). V (B, 2, 4): per block, the rows giving the point's phase in turn units and
+        its earth z from its [d_j; 1]. One boat per call (the batch ROM calls it boat by boat: the same bits)."""
         for Vb, dT, (phase_b, z_b) in zip(V, self._dT, self._rows):
             np.dot(Vb[0], dT, out=phase_b)
             np.dot(Vb[1], dT, out=z_b)
         phase, z = self._buf
-        if wave.calm:
+        if amplitude == 0.0:
             wave_term = np.multiply(phase, 0.0, out=phase)
         else:
             wave_term = self._sine(phase, out=phase)
             wave_term *= np.exp(z * k)
-            wave_term *= wave.amplitude                   # A exp(k z) sin(k x - w t)
+            wave_term *= amplitude                        # A exp(k z) sin(k x - w t)
         if clip:
             wave_term -= z                                # p / (rho g)
             np.maximum(wave_term, 0.0, out=wave_term)
-        G = np.array([FMT @ w_b for FMT, (w_b, _) in zip(self._FMT, self._rows)])
-        if clip:
-            return rg * G
-        return rg * G - rg * (cz[:, None] * self._S0 + np.einsum("bk,bkm->bm", vz, self._S1))
+        for G_b, FMT, (w_b, _) in zip(out, self._FMT, self._rows):
+            np.matmul(FMT, w_b, out=G_b)
+        return out
 
     def loads(self, p_earth: np.ndarray, R: np.ndarray, t: float, wave: Wave,
               deflections_deg: np.ndarray, clip_emerged: bool = False, *, sea=None,

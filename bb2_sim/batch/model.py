@@ -6,8 +6,9 @@ states). Every step of the scalar evaluation is followed in the same order on ar
 results equal its single evaluation to round-off: bit for bit in the tables, flow angles, planes, hull, propeller
 and the buoyancy; within an ulp where the scalar code multiplies small matrices with BLAS (kinematics, the
 added-mass section velocities and moments) or where the batch folds the small plane blocks of the pressure
-integral. A boat in a sea (and every boat with free-surface clipping) runs the scalar wave and pressure code
-itself, boat by boat: that per-point work does not vectorise over boats with profit.
+integral. The boats in a sea take the scalar code's orbital velocities (on arrays over boats, bit for bit) and its
+pressure integral bit for bit, its per-point pass boat by boat (that work does not vectorise over boats with
+profit); with free-surface clipping every boat runs the scalar pressure code itself.
 
 Refused (``ValueError``): irregular / component seas (``BB2Model(sea=...)``: "batch: irregular seas not supported
 yet") and currents.
@@ -22,7 +23,7 @@ import numpy as np
 from ..frames import rotation_native
 from ..model import BB2Model
 from ..propeller import PropellerLoad
-from ..waves import Wave, orbital_velocity_earth, wave_for_sea_state
+from ..waves import Wave, wave_for_sea_state
 from . import libm
 from .actuators import BatchActuatorOutputs
 from .hull import hull_loads
@@ -142,16 +143,18 @@ class BatchModel:
         R = rotation_native(phi, theta, psi)                       # (3, 3, n)
         seg = Segments()
 
-        # wave velocities (body axes) at the CG, the 5 planes and the 15 sections: (3, 21, n); a boat in a sea
-        # takes the scalar code's own products (its per-point pressure integral dominates its cost anyway)
+        # wave velocities (body axes) at the CG, the 5 planes and the 15 sections: (3, 21, n), for the boats in a
+        # sea (the scalar code's products: numpy's stacked matmul calls them boat by boat)
         wavy = np.flatnonzero(waves.wavy)
         uw = np.zeros((3, len(self._points_body), n)) if len(wavy) else None
-        for i in wavy:
-            Ri = R[:, :, i]
-            e = x[i, 0:3] + self._points_body @ Ri.T
-            ti = t if np.ndim(t) == 0 else t[i]
-            uw[:, :, i] = (orbital_velocity_earth(waves.waves[i], e[:, 0], e[:, 2], ti,
-                                                  prof.wave_velocity_in_phase) @ Ri).T
+        if len(wavy):
+            Rw = np.ascontiguousarray(R[:, :, wavy].transpose(2, 0, 1))                    # (m, 3, 3)
+            e = x[wavy, None, 0:3] + np.matmul(self._points_body, Rw.transpose(0, 2, 1))   # (m, 21, 3) earth
+            uw_e = waves.subset(wavy).orbital_velocity_earth(np.ascontiguousarray(e[..., 0]),
+                                                             np.ascontiguousarray(e[..., 2]),
+                                                             t if np.ndim(t) == 0 else t[wavy],
+                                                             prof.wave_velocity_in_phase)
+            uw[:, :, wavy] = np.matmul(uw_e, Rw).transpose(2, 1, 0)
         uw_cg = (0.0, 0.0, 0.0) if uw is None else uw[:, 0]         # calm: the scalar code's zeros
         uw_planes = np.zeros((3, 5, 1)) if uw is None else uw[:, 1:6]
 

@@ -9,15 +9,19 @@ same terms. Per boat the loads are
   otherwise grow past 1e-12 in the states within 300 steps: the ROM amplifies ulp-level noise, see
   ``tests/sim/test_batch.py``). The five planes' blocks are small (~1e4 N) and linear in the CG depth z0 and the
   row rz of the body->earth rotation for given deflections: their loads are folded into ``z0 a + rz B`` (a (6,),
-  B (3, 6) per boat) once per step by :meth:`BatchPressure.prepare`, which also makes the hinge rotations, only
-  for the boats whose deflections changed (they are held over the step). Each evaluation then costs a few array
-  operations for the whole batch. The folding reassociates the planes' sums (1-ulp differences of ~1e5 N terms);
-  ``exact=True`` instead follows the scalar code's kernels for every block (numpy's stacked matmul and batched
-  einsum call them boat by boat): bit for bit the single loads, at about twice the batch's cost;
-* a boat in a regular sea, or every boat with free-surface clipping (profile switch): the scalar integrator's own
-  :meth:`PressureIntegrator.loads`, boat by boat (bit for bit the single run's loads). Its per-point wave term
-  (11 k points per boat and stage) dominates a boat's cost and does not shrink with the batch: it bounds the
-  speed-up of boats in a sea.
+  B (3, 6) per boat) once per step by :meth:`BatchPressure.prepare`, which also makes the hinge rotations (the
+  scalar code's products), only for the boats whose deflections changed (they are held over the step). Each
+  evaluation then costs a few array operations for the whole batch. The folding reassociates the planes' sums
+  (1-ulp differences of ~1e5 N terms); ``exact=True`` instead follows the scalar code's kernels for every block
+  (numpy's stacked matmul and batched einsum call them boat by boat): bit for bit the single loads, at about twice
+  the batch's cost;
+* a boat in a regular sea (either mode): bit for bit the scalar integrator's loads. Its per-point pass
+  (:meth:`PressureIntegrator.point_sums`: the wave term at 11 k points per stage) runs boat by boat, the rest (block
+  rows, hydrostatic sums, the planes' rotation and moving) for all boats at once. The per-point pass dominates a
+  boat's cost and does not shrink with the batch: it bounds the speed-up of boats in a sea (about 100 us a boat and
+  evaluation here);
+* every boat with free-surface clipping (profile switch): the scalar integrator's own
+  :meth:`PressureIntegrator.loads`, boat by boat.
 """
 from __future__ import annotations
 
@@ -53,11 +57,7 @@ class BatchPressure:
         self._S0, self._S1 = hydro._S0, hydro._S1          # (B, 6), (B, 3, 6) block moments
         self._pivots = hydro._pivots                         # (B - 1, 3) plane pivots, body axes
         self._hydro = hydro
-        # R_i(delta) = RX_i Rz(delta) RX_i^T = cos(delta) C_i + sin(delta) S_i + E_i
         RX = hydro._hinges                                   # (B - 1, 3, 3) hinge frames
-        Pc, Ps, Pe = np.diag([1.0, 1.0, 0.0]), np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]), \
-            np.diag([0.0, 0.0, 1.0])
-        self._C, self._S, self._E = (RX @ P @ RX.transpose(0, 2, 1) for P in (Pc, Ps, Pe))
         self._RX = RX
 
     # ------------------------------------------------------------------------------------------- per step
@@ -75,14 +75,12 @@ class BatchPressure:
                 out.Ri[changed], out.a[changed], out.B[changed] = part.Ri, part.a, part.B
                 return out
         rad = np.deg2rad(d)
-        if self.exact:                                 # the scalar code's RX @ Rz @ RX^T, boat by boat
-            c, s = np.cos(rad), np.sin(rad)
-            Rz = np.zeros(d.shape + (3, 3))
-            Rz[..., 0, 0], Rz[..., 0, 1], Rz[..., 1, 0], Rz[..., 1, 1], Rz[..., 2, 2] = c, -s, s, c, 1.0
-            Ri = np.matmul(np.matmul(self._RX, Rz), self._RX.transpose(0, 2, 1))
+        c, s = np.cos(rad), np.sin(rad)                # the scalar code's RX @ Rz @ RX^T, boat by boat
+        Rz = np.zeros(d.shape + (3, 3))
+        Rz[..., 0, 0], Rz[..., 0, 1], Rz[..., 1, 0], Rz[..., 1, 1], Rz[..., 2, 2] = c, -s, s, c, 1.0
+        Ri = np.matmul(np.matmul(self._RX, Rz), self._RX.transpose(0, 2, 1))
+        if self.exact:
             return PlaneRotations(d.copy(), Ri, np.empty((len(d), 0)), np.empty((len(d), 0)))
-        c, s = np.cos(rad)[..., None, None], np.sin(rad)[..., None, None]
-        Ri = c * self._C + s * self._S + self._E                               # (N, 5, 3, 3)
         rg = self.rho * self.g
         S0, S1, P = self._S0[1:], self._S1[1:], self._pivots
         # plane block b: G_b = -rg (cz_b S0_b + vz_b S1_b), cz_b = z0 + rz.P_b, vz_b = rz R_i
@@ -120,10 +118,20 @@ class BatchPressure:
         waves; rot: :meth:`prepare` of their actual deflections.
         """
         n = len(pos)
-        single = np.arange(n) if clip_emerged else np.flatnonzero(waves.wavy)
         out = np.empty((n, 6))
-        calm = np.ones(n, dtype=bool)
-        calm[single] = False
+        if clip_emerged:                                # not linear in z: the scalar integrator, boat by boat
+            for i in range(n):
+                ti = t if np.ndim(t) == 0 else float(t[i])
+                out[i] = self._hydro.loads(pos[i], np.ascontiguousarray(R[:, :, i]), ti, waves.waves[i],
+                                           rot.deflections_deg[i], clip_emerged=True)
+            return out
+        wavy = waves.wavy
+        if wavy.any():
+            rows = np.flatnonzero(wavy)
+            out[rows] = self._wave_loads(pos[rows], np.ascontiguousarray(R[0::2, :, rows].transpose(2, 0, 1)),
+                                         t if np.ndim(t) == 0 else t[rows], [waves.waves[i] for i in rows],
+                                         rot.Ri[rows])
+        calm = ~wavy
         if calm.any():
             rows = None if calm.all() else np.flatnonzero(calm)
             sub = (lambda a: a) if rows is None else (lambda a: a[rows])
@@ -135,13 +143,8 @@ class BatchPressure:
                 rz = np.ascontiguousarray(R[2].T) if rows is None else np.ascontiguousarray(R[2][:, rows].T)
                 res = self._calm_loads(z0, rz, rot_c)
             if rows is None:
-                out = res
-            else:
-                out[rows] = res
-        for i in single:
-            ti = t if np.ndim(t) == 0 else float(t[i])
-            out[i] = self._hydro.loads(pos[i], np.ascontiguousarray(R[:, :, i]), ti, waves.waves[i],
-                                       rot.deflections_deg[i], clip_emerged=clip_emerged)
+                return res
+            out[rows] = res
         return out
 
     def _calm_loads(self, z0: np.ndarray, rz: np.ndarray, rot: PlaneRotations) -> np.ndarray:
@@ -155,21 +158,56 @@ class BatchPressure:
                                         + rz[:, 2, None] * B[:, 2])
         return -((-rg) * hydro0) + planes
 
-    def _calm_loads_exact(self, pos: np.ndarray, rxz: np.ndarray, rot: PlaneRotations) -> np.ndarray:
-        """Calm-water loads (n, 6) without clipping, every operation as the scalar code's (bit for bit).
-        pos: CG earth positions (n, 3); rxz: rows x and z of the body->earth rotation (n, 2, 3)."""
-        rg = self.rho * self.g
-        S0, S1, P, Ri = self._S0, self._S1, self._pivots, rot.Ri
-        vz = np.concatenate([rxz[:, None, 1], np.matmul(rxz[:, None], Ri)[:, :, 1]], axis=1)      # (n, B, 3)
-        cz = np.concatenate([pos[:, None, 2], (np.matmul(P, rxz.transpose(0, 2, 1)) + pos[:, None, 0::2])[..., 1]],
-                            axis=1)                                                               # (n, B)
-        G = (-rg) * (cz[..., None] * S0 + (vz[..., 0, None] * S1[:, 0] + vz[..., 1, None] * S1[:, 1]
-                                           + vz[..., 2, None] * S1[:, 2]))
+    def _block_rows(self, pos: np.ndarray, rxz: np.ndarray, Ri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per boat and block, the earth rows [vx; vz] (n, B, 2, 3) and the origin's earth [x, z] (n, B, 2) of
+        the block's points (the scalar code's products: numpy's stacked matmul calls them boat by boat).
+        pos: CG earth positions (n, 3); rxz: rows x and z of the body->earth rotation (n, 2, 3); Ri (n, 5, 3, 3)."""
+        v = np.concatenate([rxz[:, None], np.matmul(rxz[:, None], Ri)], axis=1)
+        c = np.concatenate([pos[:, None, 0::2], np.matmul(self._pivots, rxz.transpose(0, 2, 1)) + pos[:, None, 0::2]],
+                           axis=1)
+        return v, c
+
+    def _hydrostatic_sums(self, vz: np.ndarray, cz: np.ndarray) -> np.ndarray:
+        """Per boat, the blocks' sums (n, B, 6) of z FM_j (the calm pressure is -rho g times them), as the scalar
+        code's ``cz S0 + einsum('bk,bkm->bm', vz, S1)``."""
+        S0, S1 = self._S0, self._S1
+        return cz[..., None] * S0 + (vz[..., 0, None] * S1[:, 0] + vz[..., 1, None] * S1[:, 1]
+                                     + vz[..., 2, None] * S1[:, 2])
+
+    def _sum_blocks(self, G: np.ndarray, Ri: np.ndarray) -> np.ndarray:
+        """[X, Y, Z, K, M, N] (n, 6) from the blocks' sums G (n, B, 6), as the scalar code's ``_sum_blocks``."""
         out = -G[:, 0]
         F = -np.einsum("nbij,nbj->nbi", Ri, G[:, 1:, :3])
         out[:, 0:3] += F.sum(axis=1)
-        out[:, 3:6] += (cross(P, F) - np.einsum("nbij,nbj->nbi", Ri, G[:, 1:, 3:])).sum(axis=1)
+        out[:, 3:6] += (cross(self._pivots, F) - np.einsum("nbij,nbj->nbi", Ri, G[:, 1:, 3:])).sum(axis=1)
         return out
+
+    def _calm_loads_exact(self, pos: np.ndarray, rxz: np.ndarray, rot: PlaneRotations) -> np.ndarray:
+        """Calm-water loads (n, 6) without clipping, every operation as the scalar code's (bit for bit).
+        pos: CG earth positions (n, 3); rxz: rows x and z of the body->earth rotation (n, 2, 3)."""
+        v, c = self._block_rows(pos, rxz, rot.Ri)
+        return self._sum_blocks((-self.rho * self.g) * self._hydrostatic_sums(v[..., 1, :], c[..., 1]), rot.Ri)
+
+    def _wave_loads(self, pos: np.ndarray, rxz: np.ndarray, t, waves: list, Ri: np.ndarray) -> np.ndarray:
+        """Loads (n, 6) of boats in regular waves (not clipped), bit for bit the scalar integrator's: its per-point
+        pass (:meth:`PressureIntegrator.point_sums`) boat by boat, everything around it for all boats at once.
+        t: scalar or (n,); waves: one :class:`Wave` per boat."""
+        hydro = self._hydro
+        k = np.array([w.wavenumber for w in waves])
+        omega = np.array([w.omega for w in waves])
+        v, c = self._block_rows(pos, rxz, Ri)
+        turns = hydro.turns
+        V = np.empty(v.shape[:2] + (2, 4))
+        V[..., 0, :3] = v[..., 0, :] * (k * turns)[:, None, None]
+        V[..., 0, 3] = (k[:, None] * c[..., 0] - (omega * t)[:, None]) * turns
+        V[..., 1, :3] = v[..., 1, :]
+        V[..., 1, 3] = c[..., 1]
+        G = np.empty(v.shape[:2] + (6,))
+        for Vi, ki, w, Gi in zip(V, k.tolist(), waves, G):
+            hydro.point_sums(Vi, ki, w.amplitude, False, Gi)
+        rg = self.rho * self.g
+        G = rg * G - rg * self._hydrostatic_sums(v[..., 1, :], c[..., 1])
+        return self._sum_blocks(G, Ri)
 
 
 def _rotate(Ri: np.ndarray, g: np.ndarray) -> np.ndarray:

@@ -1,11 +1,13 @@
 """The authors' regular waves of a batch: one :class:`bb2_sim.waves.Wave` per boat (calm: amplitude 0).
 
-A boat in a sea runs the scalar wave code itself (orbital velocities, the per-point pressure integral: that work
-is per boat anyway); only the calm boats take the vectorised paths.
+The orbital velocities of the boats in a sea are :func:`bb2_sim.waves.orbital_velocity_earth` on arrays over boats
+(every operation element by element as the scalar code's: bit for bit); their per-point pressure pass runs boat by
+boat (:mod:`bb2_sim.batch.pressure`).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 from typing import Sequence
 
 import numpy as np
@@ -40,3 +42,25 @@ class BatchWaves:
     def subset(self, boats: np.ndarray) -> "BatchWaves":
         """The waves of the boats with the given indices."""
         return BatchWaves(self.amplitude[boats], tuple(self.waves[i] for i in boats))
+
+    def orbital_velocity_earth(self, x: np.ndarray, z: np.ndarray, t, in_phase_with_pressure: bool = False
+                               ) -> np.ndarray:
+        """:func:`bb2_sim.waves.orbital_velocity_earth` of every boat at once: (u, v, w) earth axes (N, P, 3) at
+        the earth points (x, z) (N, P) of the boats (all in a sea: amplitude != 0); t scalar or (N,) s."""
+        ws = self.waves
+        k = np.array([w.wavenumber for w in ws])[:, None]
+        omega = np.array([w.omega for w in ws])[:, None]
+        phase = np.array([w.phase for w in ws])[:, None]
+        t = t if np.ndim(t) == 0 else np.asarray(t, dtype=float)[:, None]
+        th = k * x - omega * t + phase
+        amp = np.array([w.amplitude * w.omega for w in ws])[:, None] * np.exp(k * z)
+        out = np.zeros(np.shape(x) + (3,))
+        if in_phase_with_pressure:
+            horiz = amp * np.sin(th)
+            out[..., 2] = -amp * np.cos(th)
+        else:
+            horiz = -amp * np.cos(th)
+            out[..., 2] = -amp * np.sin(th)
+        out[..., 0] = horiz * np.array([math.cos(math.pi * w.heading_param) for w in ws])[:, None]
+        out[..., 1] = -horiz * np.array([math.sin(math.pi * w.heading_param) for w in ws])[:, None]
+        return out
