@@ -44,6 +44,10 @@ MODES = ("lockstep", "realtime")
 OUTPUT = {"path_following": "/bb2/guidance/rate_cmd", "l1_autopilot": "/bb2/autopilot/vh_cmd",
           "mixer": "/bb2/planes/cmd"}  # what each controller publishes, one message per state it answers
 STOP_S = 5.0  # the SIGSTOP, wall s
+# what a process publishes after the signal was sent: the signal lands at its next return from the kernel and
+# a loaded machine may first run what it was doing (two states published 60-77 ms after a SIGSTOP were seen
+# while the suite ran); the stream must still stand still for the rest of the STOP_S
+FAULT_GRACE_S = 0.25
 RT_RATE_HZ = 60.0  # real time: 3 sim s per wall s
 LOCKSTEP_TIMEOUT_S = 1.0  # config/bb2_graph.yaml's default
 INJECT_AFTER = 20  # the fault comes once plane commands answered this many steps (1 s of sim time)
@@ -362,7 +366,7 @@ def check_killed(cell: Cell) -> None:
         # the recorder, and the transient-local history died with the writer): only early in the run
         assert cell.fault_at_s <= 10.0 and n != "simulator", (killed_topic, cell.fault_at_s)
     elif killed_topic:  # nothing of the killed node after the kill; its last message answers (or is) the last state
-        assert not _published_between(cell, killed_topic, cell.fault_wall + 0.05, float("inf")), killed_topic
+        assert not _published_between(cell, killed_topic, cell.fault_wall + FAULT_GRACE_S, float("inf")), killed_topic
         # (its very last sample may die in flight with it: the mixer had it, the recorder not yet)
         assert cell.fault_at_s - 2 * TS <= max(cell.stamps[killed_topic]) <= st[-1]
     # every state from the first recorded answer (real time starts on the failsafe until the controllers answer)
@@ -420,7 +424,7 @@ def _failsafe_statuses(cell: Cell) -> list[dict[str, str]]:
 def check_simulator_frozen(cell: Cell) -> None:
     """Sim time stands still for the stop (no state published), then the run goes on to the end with every step."""
     check_completed(cell)
-    assert not _published_between(cell, "/bb2/state_native", cell.fault_wall + 0.05, cell.resume_wall)
+    assert not _published_between(cell, "/bb2/state_native", cell.fault_wall + FAULT_GRACE_S, cell.resume_wall)
     w = cell.walls["/bb2/state_native"]
     assert max(b - a for a, b in zip(w, w[1:])) >= STOP_S - 0.5
     last = cell.statuses[-1]
@@ -454,7 +458,7 @@ def check_controller_frozen(cell: Cell) -> None:
     and the run completes."""
     check_completed(cell)
     out = OUTPUT[cell.node]
-    assert not _published_between(cell, out, cell.fault_wall + 0.05, cell.resume_wall), out
+    assert not _published_between(cell, out, cell.fault_wall + FAULT_GRACE_S, cell.resume_wall), out
     fs = _failsafe_statuses(cell)
     assert fs, [(s["sim_time_s"], s["failsafe"]) for s in cell.statuses]
     last = cell.statuses[-1]

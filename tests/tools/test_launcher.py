@@ -78,7 +78,8 @@ def tick():
         print(f"fake {a.name}: crashing with {a.exit_code}", flush=True)
         os._exit(a.exit_code)
 node.create_timer(0.02, tick)
-(a.dir / f"{a.name}.pid").write_text(str(os.getpid()))
+(a.dir / f"{a.name}.pid.tmp").write_text(str(os.getpid()))
+os.replace(a.dir / f"{a.name}.pid.tmp", a.dir / f"{a.name}.pid")   # whole when it appears: the test reads it then
 print(f"fake {a.name}: up", flush=True)
 try:
     rclpy.spin(node)
