@@ -93,20 +93,21 @@ class RateAutopilot:
         self.reset()
 
     def reset(self) -> None:
-        self._int = np.zeros(2)
-        self._prev: np.ndarray | None = None
+        self._int = (0.0, 0.0)
+        self._prev: tuple[float, float] | None = None
         self.limit_dV.reset()
         self.limit_dH.reset()
 
     def step(self, u_q: float, u_r: float, q_up: float, r_left: float) -> tuple[float, float]:
         """Rate references u_q, u_r and measured rates q_up, r_left (rad/s) -> (dV, dH) in deg."""
         _finite("rate autopilot", u_q=u_q, u_r=u_r, q_up=q_up, r_left=r_left)
-        e = np.array([u_q - q_up, u_r - r_left], dtype=float)
-        self._int = self._int + self.Ts * e
-        de = np.zeros(2) if self._prev is None else (e - self._prev) / self.Ts
-        self._prev = e
-        dV = self.K_q * e[0] + self.KI_q * self._int[0] + self.KD_q * de[0]
-        dH = self.K_r * e[1] + self.KI_r * self._int[1] + self.KD_r * de[1]
+        Ts = self.Ts
+        eq, er = float(u_q) - float(q_up), float(u_r) - float(r_left)
+        iq, ir = self._int[0] + Ts * eq, self._int[1] + Ts * er
+        dq, dr = (0.0, 0.0) if self._prev is None else ((eq - self._prev[0]) / Ts, (er - self._prev[1]) / Ts)
+        self._int, self._prev = (iq, ir), (eq, er)
+        dV = self.K_q * eq + self.KI_q * iq + self.KD_q * dq
+        dH = self.K_r * er + self.KI_r * ir + self.KD_r * dr
         return self.limit_dV.step(dV), self.limit_dH.step(dH)
 
 

@@ -10,6 +10,7 @@ The ROM applies the per-plane rate limit and saturation itself; the mixer clips 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -55,6 +56,7 @@ class PlaneMixer:
         m = m.copy()
         m[4] *= float(self.sail_sign)
         self.matrix = m
+        self._rows = tuple((float(a), float(b)) for a, b in m)
 
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any] | None = None) -> "PlaneMixer":
@@ -70,10 +72,11 @@ class PlaneMixer:
 
     def step(self, dV_deg: float, dH_deg: float) -> np.ndarray:
         """Plane angles delta_1..delta_5 (deg) for the vertical and horizontal commands (deg)."""
-        cmd = np.array([dV_deg, dH_deg], dtype=float)
-        if not np.all(np.isfinite(cmd)):
+        dV, dH = float(dV_deg), float(dH_deg)
+        if not (math.isfinite(dV) and math.isfinite(dH)):
             raise NonFiniteInputError(f"mixer input is not finite: dV={dV_deg}, dH={dH_deg}")
-        planes = self.matrix @ cmd
-        if self.saturation_deg is not None:
-            planes = np.clip(planes, -self.saturation_deg, self.saturation_deg)
-        return planes
+        planes = [a * dV + b * dH for a, b in self._rows]       # matrix @ [dV, dH] on floats
+        s = self.saturation_deg
+        if s is not None:
+            planes = [min(max(p, -s), s) for p in planes]
+        return np.array(planes)

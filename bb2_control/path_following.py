@@ -81,8 +81,16 @@ def flow_to_body_rates(q_c: float, r_c: float, v_flu: np.ndarray) -> tuple[float
     omega_B = R_WB (0, q_c, r_c) (zero roll command, dR_WB/dt neglected, SPEC 3.1);
     q_up = -(omega_B)_y (bow up), r_left = (omega_B)_z (bow to port) -- the ROM's native q and r.
     """
-    w_b = flow_frame(v_flu) @ np.array([0.0, q_c, r_c])
-    return float(-w_b[1]), float(w_b[2])
+    u, v, w = (float(x) for x in v_flu)
+    if not (u or v or w):                      # _check_velocity's test on floats
+        _check_velocity(v_flu)
+    q_c, r_c = float(q_c), float(r_c)
+    alpha = -math.atan2(w, math.hypot(u, v))
+    beta = math.atan2(v, u)
+    sa = math.sin(alpha)
+    # rows 2 and 3 of flow_frame(v_flu) @ (0, q_c, r_c), on floats
+    return -(math.cos(alpha) * math.sin(beta) * 0.0 + math.cos(beta) * q_c + sa * math.sin(beta) * r_c), \
+        -sa * 0.0 + 0.0 * q_c + math.cos(alpha) * r_c
 
 
 def path_frame(dp: np.ndarray) -> np.ndarray:

@@ -222,3 +222,37 @@ def test_transfer_function_only_design_has_unit_dc_gain():
     # O(s) has the DC gain of M(0)^-1 Cm (-Am)^-1 = Kg Cm (-Am)^-1 (row)
     dc_O = d.Co @ np.linalg.solve(-d.Ao, d.Bo)
     np.testing.assert_allclose(dc_O, d.Kg * d.Cm @ np.linalg.inv(-d.Am), rtol=1e-9)
+
+
+@pytest.mark.parametrize("config, channel", [("rate_2022", "q"), ("depth_heading_2023", "depth"),
+                                              ("depth_heading_dec2022", "heading")])
+def test_the_tick_on_floats_is_the_matrix_law(config, channel):
+    """The channel's tick (on floats; n_m = 1 written out, n_m > 1 by rows) equals SPEC 5's matrix law step by
+    step to round-off, through an adaptation off/on switch (re-initialised from the measurement)."""
+    ch = L1Augmentation.from_config(_own_configs()[config]).channels[channel]
+    d = ch.design
+    rng = np.random.default_rng(5)
+    x_u, x_hat, init = np.zeros((d.n_o, 1)), np.zeros((d.n_m, 1)), False
+    us = []
+    for k in range(300):
+        rho, y = float(rng.normal()), float(rng.normal())
+        if k == 150:
+            ch.adaptive = False
+        if k == 160:
+            ch.adaptive, init = True, False
+        got = ch.step(rho, y)
+        if not ch.adaptive:
+            assert got == rho
+            continue
+        if not init:
+            x_hat, x_u, init = d.Cm.T @ np.linalg.solve(d.Cm @ d.Cm.T, [[y]]), np.zeros((d.n_o, 1)), True
+        sigma = d.g_sigma * ((d.Cm @ x_hat).item() - y)
+        u = d.Kg * rho - (d.Co @ x_u).item()
+        x_u = d.Eo @ x_u + d.Go @ (d.Em_inv @ sigma)
+        x_hat = d.Em @ x_hat + d.Gamma @ (d.Bm * u + sigma)
+        assert got == pytest.approx(u, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(ch.x_u, x_u, rtol=1e-11, atol=1e-12)
+        np.testing.assert_allclose(ch.x_hat, x_hat, rtol=1e-11, atol=1e-12)
+        np.testing.assert_allclose(ch.sigma_hat, sigma, rtol=1e-12, atol=1e-15)
+        us.append(u)
+    assert np.std(us) > 1e-3 and ch.x_u.shape == (d.n_o, 1) and ch.x_hat.shape == (d.n_m, 1)
