@@ -217,8 +217,10 @@ class MissionRunner:
              flown: Any = None) -> MissionRow:
         from bb2_sim.frames import rotation_native
 
-        v_e = rotation_native(x[3], x[4], x[5]) @ x[6:9]
+        v_e = (rotation_native(x[3], x[4], x[5]) @ x[6:9]).tolist()
         fpa = math.degrees(math.atan2(v_e[2], math.hypot(v_e[0], v_e[1])))
+        state_x = x
+        x = x.tolist()                          # Python floats: the same values, cheaper to index
         u = list(out.u_ad.values()) if out.u_ad else []
         u = (u + [math.nan, math.nan])[:2]
         cmd = out.planes_deg
@@ -226,7 +228,7 @@ class MissionRunner:
         xd, yd, zd = out.p_d_native
         nav_p = nav_psi = math.nan
         if flown is not None and flown is not state:  # the estimate's error
-            e, dpsi = navigation_errors(flown.as_vector(), x)
+            e, dpsi = navigation_errors(flown.as_vector(), state_x)
             nav_p, nav_psi = float(e), float(dpsi)
         return MissionRow(
             t_s=state.t, x_m=x[0], y_m=x[1], z_m=x[2],

@@ -143,6 +143,27 @@ def navigation_errors(est_x12: np.ndarray, true_x12: np.ndarray) -> tuple[np.nda
     return e, dpsi
 
 
+_DENSE: dict[tuple, tuple[np.ndarray, np.ndarray, Any]] = {}
+
+
+def _dense_samples(path: BernsteinPath, samples: int) -> tuple[np.ndarray, np.ndarray, Any]:
+    """``path.sample(samples)`` and its KD-tree, kept read-only for the last few paths (the missions of a campaign
+    share their path: its 20,001 samples cost ~15 ms a mission)."""
+    from scipy.spatial import cKDTree
+
+    c = np.asarray(path.control_points)
+    key = (c.shape, c.tobytes(), float(path.t0), float(path.tf), str(path.frame), int(samples))
+    hit = _DENSE.get(key)
+    if hit is None:
+        t, pts = path.sample(samples)
+        t.flags.writeable = pts.flags.writeable = False
+        hit = (t, pts, cKDTree(pts))
+        if len(_DENSE) >= 4:
+            _DENSE.pop(next(iter(_DENSE)))
+        _DENSE[key] = hit
+    return hit
+
+
 def path_errors_closest(path_native: BernsteinPath, p_native: np.ndarray, samples: int = 20001
                         ) -> tuple[np.ndarray, np.ndarray]:
     """(horizontal, vertical) errors of points from the closest point of the path (dense samples, KD-tree).
@@ -150,13 +171,11 @@ def path_errors_closest(path_native: BernsteinPath, p_native: np.ndarray, sample
     Components in the path's horizontal-normal frame there: horizontal > 0 left of the path, vertical > 0
     above it (the same frame as the rate stack's p_T).
     """
-    from scipy.spatial import cKDTree
-
     p_native = np.asarray(p_native, float).reshape(-1, 3)
     if len(p_native) == 0:
         return np.zeros(0), np.zeros(0)
-    t, pts = path_native.sample(samples)
-    _, k = cKDTree(pts).query(p_native)
+    t, pts, tree = _dense_samples(path_native, samples)
+    _, k = tree.query(p_native)
     d = np.asarray(path_native.velocity(t[k]), float).reshape(-1, 3)
     t1 = d / np.linalg.norm(d, axis=1, keepdims=True)
     h = np.c_[-d[:, 1], d[:, 0], np.zeros(len(d))]
