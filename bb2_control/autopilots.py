@@ -100,7 +100,9 @@ class RateAutopilot:
 
     def step(self, u_q: float, u_r: float, q_up: float, r_left: float) -> tuple[float, float]:
         """Rate references u_q, u_r and measured rates q_up, r_left (rad/s) -> (dV, dH) in deg."""
-        _finite("rate autopilot", u_q=u_q, u_r=u_r, q_up=q_up, r_left=r_left)
+        isfinite = math.isfinite
+        if not (isfinite(u_q) and isfinite(u_r) and isfinite(q_up) and isfinite(r_left)):
+            _finite("rate autopilot", u_q=u_q, u_r=u_r, q_up=q_up, r_left=r_left)
         Ts = self.Ts
         eq, er = float(u_q) - float(q_up), float(u_r) - float(r_left)
         iq, ir = self._int[0] + Ts * eq, self._int[1] + Ts * er

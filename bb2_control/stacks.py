@@ -114,10 +114,12 @@ class RateInnerLoop:
     def step(self, q_up_ref: float, r_left_ref: float, q_up: float, r_left: float
              ) -> tuple[float, float, dict[str, float]]:
         """(dV, dH, u_ad) from bow-up / bow-to-port rate references and measurements (rad/s)."""
-        vals = dict(q_up_ref=q_up_ref, r_left_ref=r_left_ref, q_up=q_up, r_left=r_left)
-        if not all(math.isfinite(float(v)) for v in vals.values()):
+        isfinite = math.isfinite
+        if not (isfinite(q_up_ref) and isfinite(r_left_ref) and isfinite(q_up) and isfinite(r_left)):
+            vals = dict(q_up_ref=q_up_ref, r_left_ref=r_left_ref, q_up=q_up, r_left=r_left)
             raise NonFiniteInputError(f"rate inner loop: non-finite input {vals}")
-        u = self.l1.step({"q": q_up_ref, "r": r_left_ref}, {"q": q_up, "r": r_left})
+        ch = self.l1.channels                   # every input checked: the channels step in turn (as l1.step)
+        u = {"q": ch["q"].step(q_up_ref, q_up), "r": ch["r"].step(r_left_ref, r_left)}
         dV, dH = self.autopilot.step(u["q"], u["r"], q_up, r_left)
         return dV, dH, u
 
@@ -176,7 +178,7 @@ class Stack:
         self.mixer = mixer_from_config(config)
         self.speed = SpeedCommand.from_config(require(config, "speed", f"stack {name}"))
         self._last: ControlOutput | None = None
-        self._prepared_inputs: tuple[float, bytes, dict[str, Any]] | None = None   # see prepare_stacks
+        self._prepared_inputs: tuple[VehicleState, float, bytes, dict[str, Any]] | None = None   # see prepare_stacks
 
     def reset(self) -> None:
         """Every piece back to its initial state (subclasses set ``guidance`` and ``inner``)."""
@@ -200,16 +202,20 @@ class Stack:
 
     def step(self, state: VehicleState) -> ControlOutput:
         """One control tick for the vehicle state (native frames); call every Ts."""
-        vec = state.as_vector()
         prepared, self._prepared_inputs = self._prepared_inputs, None
+        if prepared is not None and prepared[0] is state and prepared[1] == state.t:
+            out = self._step(state, prepared[3])        # prepared for this very state (finite: prepare checked)
+            self._last = out
+            return out
+        vec = state.as_vector()
         if not np.isfinite(vec).all() or not math.isfinite(state.t):
             if self.nan_policy == "hold" and self._last is not None:
                 return replace(self._last, held=True)
             raise NonFiniteInputError(
                 f"stack {self.name}: non-finite vehicle state at t={state.t}: {state.as_vector()}"
                 + (" (nan_policy 'hold' has no previous output yet)" if self.nan_policy == "hold" else ""))
-        if prepared is not None and prepared[0] == state.t and prepared[1] == vec.tobytes():
-            x = prepared[2]
+        if prepared is not None and prepared[1] == state.t and prepared[2] == vec.tobytes():
+            x = prepared[3]
         else:
             x = self.inputs(state)
         out = self._step(state, x)
@@ -276,11 +282,12 @@ class LosDepthHeadingStack(Stack):
 
 
 def prepare_stacks(stacks: Sequence[Stack], states: Sequence[VehicleState]) -> None:
-    """Prepare the next :meth:`Stack.step` of many stacks, each for its state: the rate stacks' path-following
-    laws compute their tick together (:func:`~bb2_control.path_following.prepare_steps`, ~10 us per law for 64
-    laws against 40 us alone).  Each stack's ``step(state)`` then gives what it gives alone, bit for bit; a stack
-    stepped with another state computes it alone.  (The batch of missions calls this every tick.)"""
-    laws, ps, Rs, vs = [], [], [], []
+    """Prepare the next :meth:`Stack.step` of many stacks, each for its state: their inputs (:meth:`Stack.inputs`)
+    computed together (:func:`_inputs_together`) and the rate stacks' path-following laws' tick together
+    (:func:`~bb2_control.path_following.prepare_steps`, ~10 us per law for 64 laws against 40 us alone).  Each
+    stack's ``step(state)`` then gives what it gives alone, bit for bit; a stack stepped with another state
+    computes it alone.  (The batch of missions calls this every tick.)"""
+    chosen, vecs = [], []
     for stack, state in zip(stacks, states):
         stack._prepared_inputs = None
         if not isinstance(stack, RatePathFollowingStack):
@@ -288,14 +295,40 @@ def prepare_stacks(stacks: Sequence[Stack], states: Sequence[VehicleState]) -> N
         vec = state.as_vector()
         if not (np.isfinite(vec).all() and math.isfinite(state.t)):
             continue
-        x = stack.inputs(state)
-        stack._prepared_inputs = (state.t, vec.tobytes(), x)
-        laws.append(stack.guidance)
-        ps.append(x["p"])
-        Rs.append(x["R_BI"])
-        vs.append(x["v_flu"])
-    if laws:
-        prepare_steps(laws, np.array(ps), np.array(Rs), np.array(vs))
+        chosen.append((stack, state))
+        vecs.append(vec)
+    if not chosen:
+        return
+    xs = _inputs_together([c[0] for c in chosen], np.array(vecs))
+    for (stack, state), vec, x in zip(chosen, vecs, xs):
+        stack._prepared_inputs = (state, state.t, vec.tobytes(), x)
+    prepare_steps([c[0].guidance for c in chosen], np.array([x["p"] for x in xs]), np.array([x["R_BI"] for x in xs]),
+                  np.array([x["v_flu"] for x in xs]))
+
+
+def _inputs_together(stacks: Sequence[Stack], X: np.ndarray) -> list[dict[str, Any]]:
+    """:meth:`Stack.inputs` of many stacks for their state vectors X (N, 12), bit for bit each one's own call:
+    the body->earth rotations of all at once (``rotation_native`` on arrays: each its own call's), the frame
+    changes as products by the signed-permutation matrices D_FLIP and M (entries 0 and +-1: every output is one
+    input's value, its sign or a sum of zeros, the same whatever the BLAS kernel).  A stack whose frame matrix has
+    other entries takes its own call."""
+    out: list[dict[str, Any] | None] = [None] * len(stacks)
+    exact = [i for i, st in enumerate(stacks) if np.isin(st._M, (-1.0, 0.0, 1.0)).all()]
+    if exact:
+        Xe = X[exact]
+        R = np.ascontiguousarray(frames.rotation_native(Xe[:, 3], Xe[:, 4], Xe[:, 5]).transpose(2, 0, 1))
+        R_BI_native = np.matmul(R, frames.D_FLIP)
+        v_flu = np.matmul(Xe[:, 6:9], frames.D_FLIP.T)
+        rows = Xe.tolist()
+        for j, i in enumerate(exact):
+            st, r = stacks[i], rows[j]
+            MT = st._M.T
+            out[i] = dict(p=MT @ Xe[j, 0:3], R_BI=MT @ R_BI_native[j], v_flu=v_flu[j], q_up=r[10], r_left=r[11],
+                          theta=r[4], heading=r[5] + st._heading_offset)
+    for i, st in enumerate(stacks):
+        if out[i] is None:
+            out[i] = st.inputs(VehicleState.from_vector(0.0, X[i]))
+    return out  # type: ignore[return-value]
 
 
 def _check_Ts(stack: Stack, *others: Any) -> None:

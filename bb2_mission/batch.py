@@ -119,10 +119,10 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[M
     while running:
         ticks: dict[int, Any] = {}
         clear = _clearances(runners, running, terrains)
-        prepare_stacks([runners[i].stack for i in running],
-                       [VehicleState.from_vector(runners[i].sim.t, runners[i].sim.x) for i in running])
-        for i in running:
-            tick = runners[i].begin_tick(clear.get(i))
+        states = [VehicleState.from_vector(runners[i].sim.t, runners[i].sim.x) for i in running]
+        prepare_stacks([runners[i].stack for i in running], states)
+        for i, state in zip(running, states):
+            tick = runners[i].begin_tick(clear.get(i), state)
             if isinstance(tick, MissionStep):
                 rows[i].keep(tick)
             elif tick.event is not None:

@@ -158,13 +158,14 @@ class MissionRunner:
                 tick.event = MissionEvent(EndReason.DIVERGED, tick.state.t, tick.x[0:3].copy(), str(e))
         return self.finish_tick(tick, rec)
 
-    def begin_tick(self, clearances: tuple[float, float, float] | None = None) -> "Tick | MissionStep":
+    def begin_tick(self, clearances: tuple[float, float, float] | None = None, state: Any = None
+                   ) -> "Tick | MissionStep":
         """The tick's half before the ROM step: the state at t_n, the clearances, the stack's output and the
         limits.  Returns the :class:`Tick` (its commands clamped for the ROM, its ``event`` if a limit ends the
         run before the step), or the ended :class:`MissionStep` of a control error.  :meth:`step` is
         ``begin_tick``, the ROM step (unless ``event``), :meth:`finish_tick`; a batch of runners shares the
         middle (:mod:`bb2_mission.batch`), and may give the clearances of this state (as :meth:`_clearances`
-        makes them)."""
+        makes them) and the :class:`~bb2_sim.state.VehicleState` of the simulator's t and x (a new one if None)."""
         from bb2_control.errors import NonFiniteInputError, PathFollowingError
         from bb2_sim.state import VehicleState
 
@@ -172,7 +173,8 @@ class MissionRunner:
             raise RuntimeError("mission already ended")
         sim = self.sim
         x = sim.x.copy()
-        state = VehicleState.from_vector(sim.t, x)
+        if state is None:
+            state = VehicleState.from_vector(sim.t, x)
         tz, cl, hull = self._clearances(x) if clearances is None else clearances
         flown = self.nav.state(sim.t) if self.nav is not None else state
         try:
