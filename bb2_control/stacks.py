@@ -172,6 +172,7 @@ class Stack:
             raise ControlConfigError(f"stack {name}: frame {frame!r} is not a z-up rotation of the native frame")
         self.frame = frame
         self._M = M                        # p_native = M p_frame
+        self._M_signed_permutation = bool(np.isin(M, (-1.0, 0.0, 1.0)).all())   # see _inputs_together
         bow = M.T @ np.array([-1.0, 0.0, 0.0])
         self._heading_offset = math.atan2(bow[1], bow[0])   # heading_frame = psi_native + offset
         self.path = path.to_frame(frame) if getattr(path, "frame", frame) != frame else path
@@ -313,7 +314,7 @@ def _inputs_together(stacks: Sequence[Stack], X: np.ndarray) -> list[dict[str, A
     input's value, its sign or a sum of zeros, the same whatever the BLAS kernel).  A stack whose frame matrix has
     other entries takes its own call."""
     out: list[dict[str, Any] | None] = [None] * len(stacks)
-    exact = [i for i, st in enumerate(stacks) if np.isin(st._M, (-1.0, 0.0, 1.0)).all()]
+    exact = [i for i, st in enumerate(stacks) if st._M_signed_permutation]
     if exact:
         Xe = X[exact]
         R = np.ascontiguousarray(frames.rotation_native(Xe[:, 3], Xe[:, 4], Xe[:, 5]).transpose(2, 0, 1))

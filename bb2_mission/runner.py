@@ -217,12 +217,14 @@ class MissionRunner:
 
     def _row(self, state: Any, x: np.ndarray, out: Any, rec: Any, tz: float, cl: float, hull: float,
              flown: Any = None) -> MissionRow:
-        from bb2_sim.frames import rotation_native
-
-        v_e = (rotation_native(x[3], x[4], x[5]) @ x[6:9]).tolist()
-        fpa = math.degrees(math.atan2(v_e[2], math.hypot(v_e[0], v_e[1])))
         state_x = x
         x = x.tolist()                          # Python floats: the same values, cheaper to index
+        # flight path angle of the earth velocity R v (R = Rz(psi) Ry(theta) Rx(phi)): Rz keeps its horizontal
+        # norm, so atan2((R v)_z, |(Ry Rx v)_xy|)
+        u, v, w = x[6], x[7], x[8]
+        cf, sf, ct, st = math.cos(x[3]), math.sin(x[3]), math.cos(x[4]), math.sin(x[4])
+        vy_rolled, vz_rolled = cf * v - sf * w, sf * v + cf * w
+        fpa = math.degrees(math.atan2(-st * u + ct * vz_rolled, math.hypot(ct * u + st * vz_rolled, vy_rolled)))
         u = list(out.u_ad.values()) if out.u_ad else []
         u = (u + [math.nan, math.nan])[:2]
         cmd = out.planes_deg
