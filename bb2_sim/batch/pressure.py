@@ -9,17 +9,17 @@ same terms. Per boat the loads are
   otherwise grow past 1e-12 in the states within 300 steps: the ROM amplifies ulp-level noise, see
   ``tests/sim/test_batch.py``). The five planes' blocks are small (~1e4 N) and linear in the CG depth z0 and the
   row rz of the body->earth rotation for given deflections: their loads are folded into ``z0 a + rz B`` (a (6,),
-  B (3, 6) per boat) once per step by :meth:`BatchPressure.prepare`, which also makes the hinge rotations (the
-  scalar code's products), only for the boats whose deflections changed (they are held over the step). Each
+  B (3, 6) per boat) once per step by :meth:`BatchPressure.prepare`, which also makes the hinge rotations, only
+  for the boats whose deflections changed (they are held over the step). Each
   evaluation then costs a few array operations for the whole batch. The folding reassociates the planes' sums
   (1-ulp differences of ~1e5 N terms); ``exact=True`` instead follows the scalar code's kernels for every block
   (numpy's stacked matmul and batched einsum call them boat by boat): bit for bit the single loads, at about twice
   the batch's cost;
 * a boat in a regular sea (either mode): bit for bit the scalar integrator's loads. Its per-point pass
   (:meth:`PressureIntegrator.point_sums`: the wave term at 11 k points per stage) runs boat by boat, the rest (block
-  rows, hydrostatic sums, the planes' rotation and moving) for all boats at once. The per-point pass dominates a
-  boat's cost and does not shrink with the batch: it bounds the speed-up of boats in a sea (about 100 us a boat and
-  evaluation here);
+  rows, hydrostatic sums, the planes' rotation and moving, with the scalar code's hinge rotations) for all boats at
+  once. The per-point pass dominates a boat's cost and does not shrink with the batch: it bounds the speed-up of
+  boats in a sea (about 100 us a boat and evaluation here);
 * every boat with free-surface clipping (profile switch): the scalar integrator's own
   :meth:`PressureIntegrator.loads`, boat by boat.
 """
@@ -43,9 +43,11 @@ class PlaneRotations:
     Ri: np.ndarray
     a: np.ndarray
     B: np.ndarray
+    Ri_exact: np.ndarray | None = None   # the scalar code's R_i (the exact mode's Ri; else made when first needed)
 
     def subset(self, rows: np.ndarray) -> "PlaneRotations":
-        return PlaneRotations(self.deflections_deg[rows], self.Ri[rows], self.a[rows], self.B[rows])
+        return PlaneRotations(self.deflections_deg[rows], self.Ri[rows], self.a[rows], self.B[rows],
+                              None if self.Ri_exact is None else self.Ri_exact[rows])
 
 
 class BatchPressure:
@@ -57,7 +59,11 @@ class BatchPressure:
         self._S0, self._S1 = hydro._S0, hydro._S1          # (B, 6), (B, 3, 6) block moments
         self._pivots = hydro._pivots                         # (B - 1, 3) plane pivots, body axes
         self._hydro = hydro
+        # R_i(delta) = RX_i Rz(delta) RX_i^T = cos(delta) C_i + sin(delta) S_i + E_i
         RX = hydro._hinges                                   # (B - 1, 3, 3) hinge frames
+        Pc, Ps, Pe = np.diag([1.0, 1.0, 0.0]), np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]), \
+            np.diag([0.0, 0.0, 1.0])
+        self._C, self._S, self._E = (RX @ P @ RX.transpose(0, 2, 1) for P in (Pc, Ps, Pe))
         self._RX = RX
 
     # ------------------------------------------------------------------------------------------- per step
@@ -71,16 +77,18 @@ class BatchPressure:
                 return previous
             if len(changed) < len(d):
                 part = self.prepare(d[changed])
-                out = PlaneRotations(d.copy(), previous.Ri.copy(), previous.a.copy(), previous.B.copy())
+                out = PlaneRotations(d.copy(), previous.Ri.copy(), previous.a.copy(), previous.B.copy(),
+                                     previous.Ri if self.exact else None)
                 out.Ri[changed], out.a[changed], out.B[changed] = part.Ri, part.a, part.B
+                if self.exact:
+                    out.Ri_exact = out.Ri
                 return out
-        rad = np.deg2rad(d)
-        c, s = np.cos(rad), np.sin(rad)                # the scalar code's RX @ Rz @ RX^T, boat by boat
-        Rz = np.zeros(d.shape + (3, 3))
-        Rz[..., 0, 0], Rz[..., 0, 1], Rz[..., 1, 0], Rz[..., 1, 1], Rz[..., 2, 2] = c, -s, s, c, 1.0
-        Ri = np.matmul(np.matmul(self._RX, Rz), self._RX.transpose(0, 2, 1))
         if self.exact:
-            return PlaneRotations(d.copy(), Ri, np.empty((len(d), 0)), np.empty((len(d), 0)))
+            Ri = self._scalar_rotations(d)
+            return PlaneRotations(d.copy(), Ri, np.empty((len(d), 0)), np.empty((len(d), 0)), Ri)
+        rad = np.deg2rad(d)
+        c, s = np.cos(rad)[..., None, None], np.sin(rad)[..., None, None]
+        Ri = c * self._C + s * self._S + self._E                               # (N, 5, 3, 3)
         rg = self.rho * self.g
         S0, S1, P = self._S0[1:], self._S1[1:], self._pivots
         # plane block b: G_b = -rg (cz_b S0_b + vz_b S1_b), cz_b = z0 + rz.P_b, vz_b = rz R_i
@@ -92,6 +100,21 @@ class BatchPressure:
             G[:, b, 1:] = (-rg) * (P[b][:, None] * S0[b] + (Ri[:, b].reshape(-1, 3) @ S1[b]).reshape(n, 3, 6))
         aB = self._plane_sum(Ri, G)
         return PlaneRotations(d.copy(), Ri, aB[:, 0], aB[:, 1:])
+
+    def _scalar_rotations(self, d: np.ndarray) -> np.ndarray:
+        """The scalar code's R_i = RX_i Rz(delta_i) RX_i^T for deflections d (N, 5) deg (numpy's stacked matmul
+        calls its products boat by boat): (N, 5, 3, 3)."""
+        rad = np.deg2rad(d)
+        c, s = np.cos(rad), np.sin(rad)
+        Rz = np.zeros(d.shape + (3, 3))
+        Rz[..., 0, 0], Rz[..., 0, 1], Rz[..., 1, 0], Rz[..., 1, 1], Rz[..., 2, 2] = c, -s, s, c, 1.0
+        return np.matmul(np.matmul(self._RX, Rz), self._RX.transpose(0, 2, 1))
+
+    def exact_rotations(self, rot: PlaneRotations) -> np.ndarray:
+        """``rot``'s hinge rotations as the scalar code makes them (made once per ``rot`` in the default mode)."""
+        if rot.Ri_exact is None:
+            rot.Ri_exact = self._scalar_rotations(rot.deflections_deg)
+        return rot.Ri_exact
 
     def _plane_sum(self, Ri: np.ndarray, G: np.ndarray) -> np.ndarray:
         """Sum over the planes of their loads for block sums G_b (N, 5, C, 6) in the plane frames (C columns):
@@ -130,7 +153,7 @@ class BatchPressure:
             rows = np.flatnonzero(wavy)
             out[rows] = self._wave_loads(pos[rows], np.ascontiguousarray(R[0::2, :, rows].transpose(2, 0, 1)),
                                          t if np.ndim(t) == 0 else t[rows], [waves.waves[i] for i in rows],
-                                         rot.Ri[rows])
+                                         self.exact_rotations(rot)[rows])
         calm = ~wavy
         if calm.any():
             rows = None if calm.all() else np.flatnonzero(calm)
