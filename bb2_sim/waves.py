@@ -70,19 +70,29 @@ def orbital_velocity_earth(wave: Wave, x: np.ndarray, z: np.ndarray, t: float,
     with the pressure. ``in_phase_with_pressure``: the field of A sin(kx - wt), consistent with the pressure.
     """
     x = np.asarray(x, dtype=float)
-    out = np.zeros(x.shape + (3,))
     if wave.calm:
-        return out
-    th = wave.wavenumber * x - wave.omega * t + wave.phase
-    amp = wave.amplitude * wave.omega * np.exp(wave.wavenumber * np.asarray(z, dtype=float))
+        return np.zeros(x.shape + (3,))
+    return orbital_velocity_of(wave.wavenumber, wave.omega, wave.phase, wave.amplitude * wave.omega,
+                               math.cos(math.pi * wave.heading_param), math.sin(math.pi * wave.heading_param),
+                               x, np.asarray(z, dtype=float), t, in_phase_with_pressure)
+
+
+def orbital_velocity_of(k, omega, phase, a_omega, cos_heading, sin_heading, x: np.ndarray, z: np.ndarray, t,
+                        in_phase_with_pressure: bool) -> np.ndarray:
+    """:func:`orbital_velocity_earth` from the wave's numbers: wavenumber k, frequency omega, phase, A omega and the
+    heading's cosine and sine -- floats for one wave, or arrays broadcasting against the points (x, z) for several
+    (the batch ROM's boats: every operation element by element, so each boat's values are its own call's)."""
+    out = np.zeros(np.shape(x) + (3,))
+    th = k * x - omega * t + phase
+    amp = a_omega * np.exp(k * z)
     if in_phase_with_pressure:
         horiz = amp * np.sin(th)
         out[..., 2] = -amp * np.cos(th)
     else:
         horiz = -amp * np.cos(th)
         out[..., 2] = -amp * np.sin(th)
-    out[..., 0] = horiz * math.cos(math.pi * wave.heading_param)
-    out[..., 1] = -horiz * math.sin(math.pi * wave.heading_param)
+    out[..., 0] = horiz * cos_heading
+    out[..., 1] = -horiz * sin_heading
     return out
 
 

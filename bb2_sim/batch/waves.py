@@ -12,7 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..waves import Wave
+from ..waves import Wave, orbital_velocity_of
 
 
 @dataclass(frozen=True)
@@ -48,19 +48,10 @@ class BatchWaves:
         """:func:`bb2_sim.waves.orbital_velocity_earth` of every boat at once: (u, v, w) earth axes (N, P, 3) at
         the earth points (x, z) (N, P) of the boats (all in a sea: amplitude != 0); t scalar or (N,) s."""
         ws = self.waves
-        k = np.array([w.wavenumber for w in ws])[:, None]
-        omega = np.array([w.omega for w in ws])[:, None]
-        phase = np.array([w.phase for w in ws])[:, None]
+        col = lambda values: np.array(values)[:, None]  # noqa: E731  (one row per boat)
         t = t if np.ndim(t) == 0 else np.asarray(t, dtype=float)[:, None]
-        th = k * x - omega * t + phase
-        amp = np.array([w.amplitude * w.omega for w in ws])[:, None] * np.exp(k * z)
-        out = np.zeros(np.shape(x) + (3,))
-        if in_phase_with_pressure:
-            horiz = amp * np.sin(th)
-            out[..., 2] = -amp * np.cos(th)
-        else:
-            horiz = -amp * np.cos(th)
-            out[..., 2] = -amp * np.sin(th)
-        out[..., 0] = horiz * np.array([math.cos(math.pi * w.heading_param) for w in ws])[:, None]
-        out[..., 1] = -horiz * np.array([math.sin(math.pi * w.heading_param) for w in ws])[:, None]
-        return out
+        return orbital_velocity_of(col([w.wavenumber for w in ws]), col([w.omega for w in ws]),
+                                   col([w.phase for w in ws]), col([w.amplitude * w.omega for w in ws]),
+                                   col([math.cos(math.pi * w.heading_param) for w in ws]),
+                                   col([math.sin(math.pi * w.heading_param) for w in ws]), x, z, t,
+                                   in_phase_with_pressure)
