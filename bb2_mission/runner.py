@@ -221,10 +221,10 @@ class MissionRunner:
         x = x.tolist()                          # Python floats: the same values, cheaper to index
         # flight path angle of the earth velocity R v (R = Rz(psi) Ry(theta) Rx(phi)): Rz keeps its horizontal
         # norm, so atan2((R v)_z, |(Ry Rx v)_xy|)
-        u, v, w = x[6], x[7], x[8]
+        u_b, v_b, w_b = x[6], x[7], x[8]
         cf, sf, ct, st = math.cos(x[3]), math.sin(x[3]), math.cos(x[4]), math.sin(x[4])
-        vy_rolled, vz_rolled = cf * v - sf * w, sf * v + cf * w
-        fpa = math.degrees(math.atan2(-st * u + ct * vz_rolled, math.hypot(ct * u + st * vz_rolled, vy_rolled)))
+        vy_rolled, vz_rolled = cf * v_b - sf * w_b, sf * v_b + cf * w_b
+        fpa = math.degrees(math.atan2(-st * u_b + ct * vz_rolled, math.hypot(ct * u_b + st * vz_rolled, vy_rolled)))
         u = list(out.u_ad.values()) if out.u_ad else []
         u = (u + [math.nan, math.nan])[:2]
         cmd = out.planes_deg
