@@ -63,13 +63,19 @@ def vee(S: np.ndarray) -> np.ndarray:
     return np.array([A[2, 1], A[0, 2], A[1, 0]])
 
 
-def flow_frame(v_flu: np.ndarray) -> np.ndarray:
-    """R_WB: columns w1, w2, w3 of the flow frame in FLU body components (SPEC 1)."""
-    _check_velocity(v_flu)
+def _flow_angles(v_flu: np.ndarray) -> tuple[float, float, float, float]:
+    """cos and sin of the flow angles alpha (= -atan2(w, |v_h|)) and beta (= atan2(v, u)): (ca, sa, cb, sb)."""
     u, v, w = (float(x) for x in v_flu)
+    if not (u or v or w):
+        _check_velocity(v_flu)
     alpha = -math.atan2(w, math.hypot(u, v))
     beta = math.atan2(v, u)
-    ca, sa, cb, sb = math.cos(alpha), math.sin(alpha), math.cos(beta), math.sin(beta)
+    return math.cos(alpha), math.sin(alpha), math.cos(beta), math.sin(beta)
+
+
+def flow_frame(v_flu: np.ndarray) -> np.ndarray:
+    """R_WB: columns w1, w2, w3 of the flow frame in FLU body components (SPEC 1)."""
+    ca, sa, cb, sb = _flow_angles(v_flu)
     return np.array([[ca * cb, -sb, sa * cb],
                      [ca * sb, cb, sa * sb],
                      [-sa, 0.0, ca]])
@@ -81,16 +87,9 @@ def flow_to_body_rates(q_c: float, r_c: float, v_flu: np.ndarray) -> tuple[float
     omega_B = R_WB (0, q_c, r_c) (zero roll command, dR_WB/dt neglected, SPEC 3.1);
     q_up = -(omega_B)_y (bow up), r_left = (omega_B)_z (bow to port) -- the ROM's native q and r.
     """
-    u, v, w = (float(x) for x in v_flu)
-    if not (u or v or w):                      # _check_velocity's test on floats
-        _check_velocity(v_flu)
+    ca, sa, cb, sb = _flow_angles(v_flu)
     q_c, r_c = float(q_c), float(r_c)
-    alpha = -math.atan2(w, math.hypot(u, v))
-    beta = math.atan2(v, u)
-    sa = math.sin(alpha)
-    # rows 2 and 3 of flow_frame(v_flu) @ (0, q_c, r_c), on floats
-    return -(math.cos(alpha) * math.sin(beta) * 0.0 + math.cos(beta) * q_c + sa * math.sin(beta) * r_c), \
-        -sa * 0.0 + 0.0 * q_c + math.cos(alpha) * r_c
+    return -(cb * q_c + sa * sb * r_c), ca * r_c       # rows 2 and 3 of flow_frame(v_flu) @ (0, q_c, r_c)
 
 
 def path_frame(dp: np.ndarray) -> np.ndarray:

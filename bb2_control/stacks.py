@@ -179,7 +179,7 @@ class Stack:
         self.mixer = mixer_from_config(config)
         self.speed = SpeedCommand.from_config(require(config, "speed", f"stack {name}"))
         self._last: ControlOutput | None = None
-        self._prepared_inputs: tuple[VehicleState, float, bytes, dict[str, Any]] | None = None   # see prepare_stacks
+        self._prepared_inputs: tuple[VehicleState, dict[str, Any]] | None = None   # see prepare_stacks
 
     def reset(self) -> None:
         """Every piece back to its initial state (subclasses set ``guidance`` and ``inner``)."""
@@ -204,8 +204,8 @@ class Stack:
     def step(self, state: VehicleState) -> ControlOutput:
         """One control tick for the vehicle state (native frames); call every Ts."""
         prepared, self._prepared_inputs = self._prepared_inputs, None
-        if prepared is not None and prepared[0] is state and prepared[1] == state.t:
-            out = self._step(state, prepared[3])        # prepared for this very state (finite: prepare checked)
+        if prepared is not None and prepared[0] is state:
+            out = self._step(state, prepared[1])        # prepared for this very state (finite: prepare checked)
             self._last = out
             return out
         vec = state.as_vector()
@@ -215,11 +215,7 @@ class Stack:
             raise NonFiniteInputError(
                 f"stack {self.name}: non-finite vehicle state at t={state.t}: {state.as_vector()}"
                 + (" (nan_policy 'hold' has no previous output yet)" if self.nan_policy == "hold" else ""))
-        if prepared is not None and prepared[1] == state.t and prepared[2] == vec.tobytes():
-            x = prepared[3]
-        else:
-            x = self.inputs(state)
-        out = self._step(state, x)
+        out = self._step(state, self.inputs(state))
         self._last = out
         return out
 
@@ -286,9 +282,9 @@ def prepare_stacks(stacks: Sequence[Stack], states: Sequence[VehicleState]) -> N
     """Prepare the next :meth:`Stack.step` of many stacks, each for its state: their inputs (:meth:`Stack.inputs`)
     computed together (:func:`_inputs_together`) and the rate stacks' path-following laws' tick together
     (:func:`~bb2_control.path_following.prepare_steps`, ~10 us per law for 64 laws against 40 us alone).  Each
-    stack's ``step(state)`` then gives what it gives alone, bit for bit; a stack stepped with another state
+    stack's ``step(state)`` then gives what it gives alone, bit for bit; a stack stepped with another state object
     computes it alone.  (The batch of missions calls this every tick.)"""
-    chosen, vecs = [], []
+    chosen, chosen_states, vecs = [], [], []
     for stack, state in zip(stacks, states):
         stack._prepared_inputs = None
         if not isinstance(stack, RatePathFollowingStack):
@@ -296,20 +292,22 @@ def prepare_stacks(stacks: Sequence[Stack], states: Sequence[VehicleState]) -> N
         vec = state.as_vector()
         if not (np.isfinite(vec).all() and math.isfinite(state.t)):
             continue
-        chosen.append((stack, state))
+        chosen.append(stack)
+        chosen_states.append(state)
         vecs.append(vec)
     if not chosen:
         return
-    xs = _inputs_together([c[0] for c in chosen], np.array(vecs))
-    for (stack, state), vec, x in zip(chosen, vecs, xs):
-        stack._prepared_inputs = (state, state.t, vec.tobytes(), x)
-    prepare_steps([c[0].guidance for c in chosen], np.array([x["p"] for x in xs]), np.array([x["R_BI"] for x in xs]),
-                  np.array([x["v_flu"] for x in xs]))
+    xs = _inputs_together(chosen, chosen_states, np.array(vecs))
+    for stack, state, x in zip(chosen, chosen_states, xs):
+        stack._prepared_inputs = (state, x)
+    prepare_steps([stack.guidance for stack in chosen], np.array([x["p"] for x in xs]),
+                  np.array([x["R_BI"] for x in xs]), np.array([x["v_flu"] for x in xs]))
 
 
-def _inputs_together(stacks: Sequence[Stack], X: np.ndarray) -> list[dict[str, Any]]:
-    """:meth:`Stack.inputs` of many stacks for their state vectors X (N, 12), bit for bit each one's own call:
-    the body->earth rotations of all at once (``rotation_native`` on arrays: each its own call's), the frame
+def _inputs_together(stacks: Sequence[Stack], states: Sequence[VehicleState], X: np.ndarray
+                     ) -> list[dict[str, Any]]:
+    """:meth:`Stack.inputs` of many stacks for their states (X (N, 12): their vectors), bit for bit each one's own
+    call: the body->earth rotations of all at once (``rotation_native`` on arrays: each its own call's), the frame
     changes as products by the signed-permutation matrices D_FLIP and M (entries 0 and +-1: every output is one
     input's value, its sign or a sum of zeros, the same whatever the BLAS kernel).  A stack whose frame matrix has
     other entries takes its own call."""
@@ -328,7 +326,7 @@ def _inputs_together(stacks: Sequence[Stack], X: np.ndarray) -> list[dict[str, A
                           theta=r[4], heading=r[5] + st._heading_offset)
     for i, st in enumerate(stacks):
         if out[i] is None:
-            out[i] = st.inputs(VehicleState.from_vector(0.0, X[i]))
+            out[i] = st.inputs(states[i])
     return out  # type: ignore[return-value]
 
 

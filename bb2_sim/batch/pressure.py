@@ -77,8 +77,7 @@ class BatchPressure:
                 return previous
             if len(changed) < len(d):
                 part = self.prepare(d[changed])
-                out = PlaneRotations(d.copy(), previous.Ri.copy(), previous.a.copy(), previous.B.copy(),
-                                     previous.Ri if self.exact else None)
+                out = PlaneRotations(d.copy(), previous.Ri.copy(), previous.a.copy(), previous.B.copy())
                 out.Ri[changed], out.a[changed], out.B[changed] = part.Ri, part.a, part.B
                 if self.exact:
                     out.Ri_exact = out.Ri

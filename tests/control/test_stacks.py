@@ -212,7 +212,7 @@ def test_inputs_computed_together_are_each_stacks_own_to_the_bit():
     X[::2, 3] = 0.0                        # no roll
     X[1::3, 7:9] = -0.0                    # negative zeros
     X[2::4, [0, 4, 9]] = [0.0, -0.0, 0.0]
-    got = _inputs_together(stacks, X)
+    got = _inputs_together(stacks, [VehicleState.from_vector(1.0, x) for x in X], X)
     assert len({s.frame for s in stacks}) == 3 and len({s._M.tobytes() for s in stacks}) == 2
     for st, x, g in zip(stacks, X, got):
         own = st.inputs(VehicleState.from_vector(1.0, x))
