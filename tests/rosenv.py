@@ -70,6 +70,39 @@ def read_until_sim_time(p: subprocess.Popen, min_sim_s: float = 0.0, timeout_s: 
     raise AssertionError(f"the graph never passed sim time {min_sim_s:g} s:\n{seen[-3000:]}")
 
 
+def wait_for_clock(domain_id: int, min_sim_s: float, timeout_s: float = 120.0) -> float:
+    """Listen to /clock on ``domain_id`` in this process until a graph's sim time passes ``min_sim_s`` (the graph
+    steps, however long a loaded machine took to bring its nodes up); returns that time. AssertionError after
+    ``timeout_s`` of wall time."""
+    import time
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    latest = [-1.0]
+    try:
+        node = rclpy.create_node("test_clock_probe", context=ctx)
+        node.create_subscription(Clock, "/clock",
+                                 lambda m: latest.__setitem__(0, max(latest[0], m.clock.sec + 1e-9 * m.clock.nanosec)),
+                                 QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+        executor = SingleThreadedExecutor(context=ctx)
+        executor.add_node(node)
+        t0 = time.monotonic()
+        while latest[0] <= min_sim_s:
+            assert time.monotonic() - t0 < timeout_s, \
+                f"the graph's /clock never passed {min_sim_s:g} s in {timeout_s:g} s (last: {latest[0]:g} s)"
+            executor.spin_once(timeout_sec=0.05)
+        executor.shutdown()
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+    return latest[0]
+
+
 def launch_with_fault(mission: Path, out: Path, *args: str, fault, min_sim_s: float = 0.0,
                       timeout_s: float = 600.0) -> tuple[int, str]:
     """``bb2-launch MISSION --out OUT --end-at simulator --timeout 600 --status-period 0.5 ARGS``; once its sim
