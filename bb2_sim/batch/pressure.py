@@ -9,12 +9,13 @@ same terms. Per boat the loads are
   otherwise grow past 1e-12 in the states within 300 steps: the ROM amplifies ulp-level noise, see
   ``tests/sim/test_batch.py``). The five planes' blocks are small (~1e4 N) and linear in the CG depth z0 and the
   row rz of the body->earth rotation for given deflections: their loads are folded into ``z0 a + rz B`` (a (6,),
-  B (3, 6) per boat) once per step by :meth:`BatchPressure.prepare`, which also makes the hinge rotations, only
-  for the boats whose deflections changed (they are held over the step). Each
-  evaluation then costs a few array operations for the whole batch. The folding reassociates the planes' sums
-  (1-ulp differences of ~1e5 N terms); ``exact=True`` instead follows the scalar code's kernels for every block
-  (numpy's stacked matmul and batched einsum call them boat by boat): bit for bit the single loads, at about twice
-  the batch's cost;
+  B (3, 6) per boat) once per step by :meth:`BatchPressure.prepare`, only for the boats whose deflections changed
+  (they are held over the step). [a; B] is a polynomial of degree two in each plane's (cos, sin) of its deflection
+  (the hinge rotation enters the block sums and turns them back), so the fold is one product of those six terms
+  per plane with coefficients made once. Each evaluation then costs a few array operations for the whole batch.
+  The folding reassociates the planes' sums (1-ulp differences of ~1e5 N terms); ``exact=True`` instead follows the
+  scalar code's kernels for every block (numpy's stacked matmul and batched einsum call them boat by boat): bit for
+  bit the single loads, at about twice the batch's cost;
 * a boat in a regular sea (either mode): bit for bit the scalar integrator's loads. Its per-point pass
   (:meth:`PressureIntegrator.point_sums`: the wave term at 11 k points per stage) runs boat by boat, the rest (block
   rows, hydrostatic sums, the planes' rotation and moving, with the scalar code's hinge rotations) for all boats at
@@ -36,17 +37,17 @@ from .waves import BatchWaves
 
 @dataclass
 class PlaneRotations:
-    """Per boat, for its held plane deflections (N, 5) deg: the hinge rotations R_i (N, 5, 3, 3) and the planes'
-    hydrostatic loads folded as z0 a + rz B, a (N, 6), B (N, 3, 6) (body axes, moments about the CG)."""
+    """Per boat, for its held plane deflections (N, 5) deg: the planes' hydrostatic loads folded as z0 a + rz B,
+    a (N, 6), B (N, 3, 6) (body axes, moments about the CG), and the scalar code's hinge rotations R_i (N, 5, 3, 3)
+    (the exact mode's; else made when first needed, for boats in a sea)."""
 
     deflections_deg: np.ndarray
-    Ri: np.ndarray
     a: np.ndarray
     B: np.ndarray
-    Ri_exact: np.ndarray | None = None   # the scalar code's R_i (the exact mode's Ri; else made when first needed)
+    Ri_exact: np.ndarray | None = None
 
     def subset(self, rows: np.ndarray) -> "PlaneRotations":
-        return PlaneRotations(self.deflections_deg[rows], self.Ri[rows], self.a[rows], self.B[rows],
+        return PlaneRotations(self.deflections_deg[rows], self.a[rows], self.B[rows],
                               None if self.Ri_exact is None else self.Ri_exact[rows])
 
 
@@ -65,11 +66,34 @@ class BatchPressure:
             np.diag([0.0, 0.0, 1.0])
         self._C, self._S, self._E = (RX @ P @ RX.transpose(0, 2, 1) for P in (Pc, Ps, Pe))
         self._RX = RX
+        self._fold = self._fold_coefficients()              # (5 * 6, 4 * 6): see prepare
+
+    def _fold_coefficients(self) -> np.ndarray:
+        """The planes' folded hydrostatic loads as polynomials in (c, s) = (cos, sin) of each deflection.
+
+        Plane b's block sums in its own frame are G_b = -rg (z0 S0_b + rz H_b), H_b = P_b S0_b^T + R_b S1_b (3, 6)
+        (cz_b = z0 + rz.P_b, vz_b = rz R_b), and its body loads F_b = -R_b G_b[:3], M_b = P_b x F_b - R_b G_b[3:].
+        With R_b = c C_b + s S_b + E_b the loads are z0 a + rz B, [a; B] (4, 6) a sum over the planes of
+        c^2 K0 + cs K1 + s^2 K2 + c K3 + s K4 + K5: the K's (plane, term) are made here once, from the basis
+        matrices, as (30, 24) for one product per step."""
+        rg = self.rho * self.g
+        term = {(0, 0): 0, (0, 1): 1, (1, 0): 1, (1, 1): 2, (0, 2): 3, (2, 0): 3, (1, 2): 4, (2, 1): 4, (2, 2): 5}
+        K = np.zeros((len(self._pivots), 6, 4, 6))
+        for b, (P, S0, S1) in enumerate(zip(self._pivots, self._S0[1:], self._S1[1:])):
+            basis = (self._C[b], self._S[b], self._E[b])   # R_b = c C_b + s S_b + E_b: the factors c, s, 1
+            for v, Rv in enumerate(basis):                  # the rotation of the loads: factor v
+                K[b, term[v, 2], 0] += _plane_load(P, Rv, -rg * S0)   # a: the z0 column, H-free
+                for k in range(3):                          # row k of B: P_b[k] S0_b, then R_b[k] S1_b (factor u)
+                    K[b, term[v, 2], 1 + k] += _plane_load(P, Rv, -rg * P[k] * S0)
+                    for u, Ru in enumerate(basis):
+                        K[b, term[u, v], 1 + k] += _plane_load(P, Rv, -rg * (Ru[k] @ S1))
+        return K.reshape(len(K) * 6, 4 * 6)
 
     # ------------------------------------------------------------------------------------------- per step
     def prepare(self, deflections_deg: np.ndarray, previous: PlaneRotations | None = None) -> PlaneRotations:
-        """Hinge rotations R_i = RX_i Rz(delta_i) RX_i^T and the planes' folded hydrostatic loads for the actual
-        deflections (N, 5) deg (without incidence); rows whose deflections equal ``previous``'s are copied."""
+        """The planes' folded hydrostatic loads for the actual deflections (N, 5) deg (without incidence; the
+        exact mode: the scalar code's hinge rotations R_i = RX_i Rz(delta_i) RX_i^T instead); rows whose
+        deflections equal ``previous``'s are copied."""
         d = np.asarray(deflections_deg, dtype=float)
         if previous is not None and previous.deflections_deg.shape == d.shape:
             changed = np.flatnonzero((previous.deflections_deg != d).any(axis=1))
@@ -77,28 +101,24 @@ class BatchPressure:
                 return previous
             if len(changed) < len(d):
                 part = self.prepare(d[changed])
-                out = PlaneRotations(d.copy(), previous.Ri.copy(), previous.a.copy(), previous.B.copy())
-                out.Ri[changed], out.a[changed], out.B[changed] = part.Ri, part.a, part.B
+                out = PlaneRotations(d.copy(), previous.a.copy(), previous.B.copy())
+                out.a[changed], out.B[changed] = part.a, part.B
                 if self.exact:
-                    out.Ri_exact = out.Ri
+                    out.Ri_exact = previous.Ri_exact.copy()
+                    out.Ri_exact[changed] = part.Ri_exact
                 return out
         if self.exact:
-            Ri = self._scalar_rotations(d)
-            return PlaneRotations(d.copy(), Ri, np.empty((len(d), 0)), np.empty((len(d), 0)), Ri)
+            return PlaneRotations(d.copy(), np.empty((len(d), 0)), np.empty((len(d), 0)), self._scalar_rotations(d))
         rad = np.deg2rad(d)
-        c, s = np.cos(rad)[..., None, None], np.sin(rad)[..., None, None]
-        Ri = c * self._C + s * self._S + self._E                               # (N, 5, 3, 3)
-        rg = self.rho * self.g
-        S0, S1, P = self._S0[1:], self._S1[1:], self._pivots
-        # plane block b: G_b = -rg (cz_b S0_b + vz_b S1_b), cz_b = z0 + rz.P_b, vz_b = rz R_i
-        #                    = -rg (z0 S0_b + rz H_b),  H_b = P_b S0_b^T + R_i S1_b  (3, 6)
+        c, s = np.cos(rad), np.sin(rad)
         n = len(d)
-        G = np.empty((n, len(P), 4, 6))                     # the block sums of z0 (a) and of rz_k (rows of B)
-        G[:, :, 0] = -rg * S0
-        for b in range(len(P)):                             # H_b = P_b S0_b^T + R_i S1_b, one product per plane
-            G[:, b, 1:] = (-rg) * (P[b][:, None] * S0[b] + (Ri[:, b].reshape(-1, 3) @ S1[b]).reshape(n, 3, 6))
-        aB = self._plane_sum(Ri, G)
-        return PlaneRotations(d.copy(), Ri, aB[:, 0], aB[:, 1:])
+        phi = np.empty((n, d.shape[1], 6))                  # c^2, cs, s^2, c, s, 1 per plane
+        np.multiply(c, c, out=phi[..., 0])
+        np.multiply(c, s, out=phi[..., 1])
+        np.multiply(s, s, out=phi[..., 2])
+        phi[..., 3], phi[..., 4], phi[..., 5] = c, s, 1.0
+        aB = (phi.reshape(n, -1) @ self._fold).reshape(n, 4, 6)
+        return PlaneRotations(d.copy(), aB[:, 0], aB[:, 1:])
 
     def _scalar_rotations(self, d: np.ndarray) -> np.ndarray:
         """The scalar code's R_i = RX_i Rz(delta_i) RX_i^T for deflections d (N, 5) deg (numpy's stacked matmul
@@ -114,22 +134,6 @@ class BatchPressure:
         if rot.Ri_exact is None:
             rot.Ri_exact = self._scalar_rotations(rot.deflections_deg)
         return rot.Ri_exact
-
-    def _plane_sum(self, Ri: np.ndarray, G: np.ndarray) -> np.ndarray:
-        """Sum over the planes of their loads for block sums G_b (N, 5, C, 6) in the plane frames (C columns):
-        F_b = -R_i G_b[:3], M_b = P_b x F_b - R_i G_b[3:] -> (N, C, 6)."""
-        F = _rotate(Ri, G[..., :3])
-        np.negative(F, out=F)
-        P = self._pivots[:, None]
-        Mp = np.empty_like(F)
-        Mp[..., 0] = P[..., 1] * F[..., 2] - P[..., 2] * F[..., 1]
-        Mp[..., 1] = P[..., 2] * F[..., 0] - P[..., 0] * F[..., 2]
-        Mp[..., 2] = P[..., 0] * F[..., 1] - P[..., 1] * F[..., 0]
-        Mp -= _rotate(Ri, G[..., 3:])
-        out = np.empty(F.shape[:1] + F.shape[2:-1] + (6,))
-        out[..., 0:3] = _sum_over_planes(F)
-        out[..., 3:6] = _sum_over_planes(Mp)
-        return out
 
     # ------------------------------------------------------------------------------------------- per stage
     def loads(self, pos: np.ndarray, R: np.ndarray, t, waves: BatchWaves, rot: PlaneRotations,
@@ -207,8 +211,8 @@ class BatchPressure:
     def _calm_loads_exact(self, pos: np.ndarray, rxz: np.ndarray, rot: PlaneRotations) -> np.ndarray:
         """Calm-water loads (n, 6) without clipping, every operation as the scalar code's (bit for bit).
         pos: CG earth positions (n, 3); rxz: rows x and z of the body->earth rotation (n, 2, 3)."""
-        v, c = self._block_rows(pos, rxz, rot.Ri)
-        return self._sum_blocks((-self.rho * self.g) * self._hydrostatic_sums(v[..., 1, :], c[..., 1]), rot.Ri)
+        v, c = self._block_rows(pos, rxz, rot.Ri_exact)
+        return self._sum_blocks((-self.rho * self.g) * self._hydrostatic_sums(v[..., 1, :], c[..., 1]), rot.Ri_exact)
 
     def _wave_loads(self, pos: np.ndarray, rxz: np.ndarray, t, waves: list, Ri: np.ndarray) -> np.ndarray:
         """Loads (n, 6) of boats in regular waves (not clipped), bit for bit the scalar integrator's: its per-point
@@ -232,18 +236,8 @@ class BatchPressure:
         return self._sum_blocks(G, Ri)
 
 
-def _rotate(Ri: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """R_i g per boat, plane and column: Ri (N, 5, 3, 3), g (N, 5, C, 3) -> (N, 5, C, 3)."""
-    out = np.empty(g.shape)
-    g0, g1, g2 = g[..., 0], g[..., 1], g[..., 2]
-    for i in range(3):
-        out[..., i] = Ri[:, :, i, 0, None] * g0 + Ri[:, :, i, 1, None] * g1 + Ri[:, :, i, 2, None] * g2
-    return out
-
-
-def _sum_over_planes(a: np.ndarray) -> np.ndarray:
-    """a[:, 0] + a[:, 1] + ... (N, P, ..., 3) -> (N, ..., 3), in plane order (the scalar code's sum over axis 0)."""
-    out = a[:, 0] + a[:, 1]
-    for i in range(2, a.shape[1]):
-        out += a[:, i]
-    return out
+def _plane_load(P: np.ndarray, R: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Body load [F, M] (6,) of a plane with pivot P and rotation R from its block sums g (6,) in its own frame:
+    F = -R g[:3], M = P x F - R g[3:]."""
+    F = -(R @ g[:3])
+    return np.concatenate([F, cross(P, F) - R @ g[3:]])
