@@ -4,11 +4,13 @@ The boats share the model's hull, parameters, tables, physics profile and trimme
 held actuator outputs, Derivative-block memory and regular wave (:class:`bb2_sim.waves.Wave`, e.g. different sea
 states). Every step of the scalar evaluation is followed in the same order on arrays over boats, so a boat's
 results equal its single evaluation to round-off: bit for bit in the tables, flow angles, planes, hull, propeller
-and the buoyancy; within an ulp where the scalar code multiplies small matrices with BLAS (kinematics, the
-added-mass section velocities and moments) or where the batch folds the small plane blocks of the pressure
-integral. The boats in a sea take the scalar code's orbital velocities (on arrays over boats, bit for bit) and its
-pressure integral bit for bit, its per-point pass boat by boat (that work does not vectorise over boats with
-profit); with free-surface clipping every boat runs the scalar pressure code itself.
+and the buoyancy; within an ulp where the scalar code multiplies small matrices with BLAS (kinematics) or where
+the batch folds the small plane blocks of the pressure integral; to round-off in the added mass, whose Derivative
+blocks (linear) differentiate the motion and the sections' wave velocities instead of the sections' relative
+velocities (:class:`.memory.BatchAddedMassMemory`; ``exact``: section by section). The boats in a sea take the
+scalar code's orbital velocities (on arrays over boats, bit for bit) and its pressure integral bit for bit, its
+per-point pass boat by boat (that work does not vectorise over boats with profit); with free-surface clipping every
+boat runs the scalar pressure code itself.
 
 Refused (``ValueError``): irregular / component seas (``BB2Model(sea=...)``: "batch: irregular seas not supported
 yet") and currents.
@@ -28,7 +30,7 @@ from . import libm
 from .actuators import BatchActuatorOutputs
 from .hull import hull_loads
 from .lookup import BatchRomTables, Segments
-from .memory import BatchDerivativeMemory
+from .memory import AddedMassInputs, BatchAddedMassMemory, BatchDerivativeMemory
 from .planes import plane_flow, plane_loads
 from .pressure import BatchPressure
 from .propeller import propeller_load
@@ -47,7 +49,8 @@ class BatchEvaluation:
 
     xdot: np.ndarray            # (n, 12)
     forces: np.ndarray          # (n, 6) total external load [X, Y, Z, K, M, N]
-    urel_sections: np.ndarray   # (n, 15, 3) relative velocities fed to the added-mass Derivative blocks
+    added_mass_inputs: np.ndarray | AddedMassInputs  # what the added-mass Derivative blocks differentiate
+    # (exact: the sections' relative velocities (n, 15, 3), as the scalar code)
     alpha_deg: np.ndarray       # (n,)
     beta_deg: np.ndarray        # (n,)
     U: np.ndarray               # (n,)
@@ -104,7 +107,9 @@ class BatchModel:
         W[1, :, 0], W[2, :, 0] = rs[:, 2], -rs[:, 1]
         W[2, :, 1], W[0, :, 1] = rs[:, 0], -rs[:, 2]
         W[0, :, 2], W[1, :, 2] = rs[:, 1], -rs[:, 0]
-        self._omega_cross = W.reshape(3, -1)
+        # the added-mass load of the motion: urel_i = -(V + omega x r_i) so F_vm = -(d nu/dt) @ (6, 6), nu = [V, omega]
+        self._added_mass_of_motion = np.vstack([np.tile(np.eye(3), len(rs)), W.reshape(3, -1)]) @ (
+            np.asarray(P.Cvm, dtype=float).reshape(-1, 1) * self._section_sums)
 
     @classmethod
     def from_sea_states(cls, model: BB2Model, sea_states: Sequence[float], strict: bool = True,
@@ -112,9 +117,13 @@ class BatchModel:
         """Boats in the authors' sea states (one per boat; 0 and 1 calm)."""
         return cls(model, [wave_for_sea_state(s, model.params, strict=strict) for s in sea_states], exact=exact)
 
-    def new_memory(self) -> BatchDerivativeMemory:
-        """Empty Derivative-block memories for the boats."""
-        return BatchDerivativeMemory(self.n_boats, (len(self.params.section_points_body), 3))
+    def new_memory(self) -> BatchDerivativeMemory | BatchAddedMassMemory:
+        """Empty Derivative-block memories for the boats: the sections' relative velocities (exact, as the scalar
+        code), else the motion and the sections' wave velocities (:class:`.memory.BatchAddedMassMemory`)."""
+        n_sections = len(self.params.section_points_body)
+        if self.exact:
+            return BatchDerivativeMemory(self.n_boats, (n_sections, 3))
+        return BatchAddedMassMemory(self.n_boats, n_sections)
 
     # -------------------------------------------------------------------------------------------
     def _check(self, x: np.ndarray, act: BatchActuatorOutputs, boats) -> int:
@@ -126,7 +135,7 @@ class BatchModel:
                              f"{act.planes_deg.shape}, {np.shape(act.rps)}, {np.shape(act.dmass_kg)}")
         return n
 
-    def evaluate(self, t, x: np.ndarray, act: BatchActuatorOutputs, dmem: BatchDerivativeMemory,
+    def evaluate(self, t, x: np.ndarray, act: BatchActuatorOutputs, dmem: BatchDerivativeMemory | BatchAddedMassMemory,
                  boats: np.ndarray | None = None) -> BatchEvaluation:
         """Evaluation at (t, x) of the boats ``boats`` (indices into the batch; None: all N), rows of x and act in
         that order. t: scalar or one time per boat. A boat whose numbers break down gets NaN rows (its single
@@ -184,28 +193,32 @@ class BatchModel:
             act.rotations = self.pressure.prepare(act.planes_deg)
         BFM = self.pressure.loads(x[:, 0:3], R, t, waves, act.rotations, clip_emerged=prof.free_surface_clipping)
 
-        # added mass (8): urel_i = uw_i - (V + r_i @ skew(omega)^T). ``exact``: the products per boat with the
-        # scalar code's BLAS kernels (numpy's stacked matmul calls them boat by boat); else written out (the
-        # section velocities and added-mass loads are small: an ulp of them is far below the tolerance)
+        # added mass (8): urel_i = uw_i - (V + r_i @ skew(omega)^T), F_vm = [sum_i dF_i, sum_i r_i x dF_i] with
+        # dF_i = Cvm_i d/dt urel_i (Derivative blocks). ``exact``: section by section, the products per boat with
+        # the scalar code's BLAS kernels (numpy's stacked matmul calls them boat by boat). Else the blocks (linear)
+        # differentiate the motion nu and, for the boats in a sea, the sections' wave velocities: F_vm is then
+        # -(d nu/dt) M + the waves' part, the same loads to round-off without the (n, 15, 3) arrays in calm water
         rs = P.section_points_body
-        uw_sec = 0.0 if uw is None else uw[:, 6:].T
         if self.exact:
+            uw_sec = 0.0 if uw is None else uw[:, 6:].T
             skew_T = np.zeros((n, 3, 3))
             skew_T[:, 0, 1], skew_T[:, 0, 2], skew_T[:, 1, 0] = r, -q, -r
             skew_T[:, 1, 2], skew_T[:, 2, 0], skew_T[:, 2, 1] = p_, q, -p_
-            urel = uw_sec - (x[:, None, 6:9] + np.matmul(rs, skew_T))      # (n, 15, 3)
-        else:                            # omega x r_i for the 15 sections: omega (n, 3) @ (3, 45)
-            urel = uw_sec - (x[:, None, 6:9] + (x[:, 9:12] @ self._omega_cross).reshape(n, len(rs), 3))
-        acc = dmem.derivative(t, urel, boats)
-        dF = P.Cvm * acc
-        F_vm = np.empty((n, 6))
-        if self.exact:
+            am_in = uw_sec - (x[:, None, 6:9] + np.matmul(rs, skew_T))      # (n, 15, 3)
+            dF = P.Cvm * dmem.derivative(t, am_in, boats)
             A = np.matmul(rs.T, dF)                                         # r^T dF per boat (n, 3, 3)
+            F_vm = np.empty((n, 6))
             F_vm[:, 0:3] = dF.sum(axis=1)
             F_vm[:, 3], F_vm[:, 4], F_vm[:, 5] = A[:, 1, 2] - A[:, 2, 1], A[:, 2, 0] - A[:, 0, 2], \
                 A[:, 0, 1] - A[:, 1, 0]
         else:
-            F_vm = dF.reshape(n, -1) @ self._section_sums                  # [sum_i dF_i, sum_i r_i x dF_i]
+            am_in = AddedMassInputs(x[:, 6:12].copy(), None if uw is None else
+                                    np.ascontiguousarray(uw[:, 6:, wavy].transpose(2, 1, 0)), wavy)
+            d_nu, d_uw = dmem.derivatives(t, am_in, boats)
+            F_vm = d_nu @ self._added_mass_of_motion
+            np.negative(F_vm, out=F_vm)
+            if d_uw is not None:                                            # [sum_i dF_i, sum_i r_i x dF_i]
+                F_vm[wavy] += (P.Cvm * d_uw).reshape(len(wavy), -1) @ self._section_sums
 
         # propeller (6)
         prop = propeller_load(u, Z0, act.rps, P, self.tables.thrust_deduction, seg,
@@ -237,4 +250,4 @@ class BatchModel:
         xdot = np.empty((n, 12))
         xdot[:, 6:12] = rigid_body_acceleration(F, u, v, w, p_, q, r, P, euler_roll=prof.euler_roll_inertia)
         xdot[:, 0:6] = kinematics(R, phi, theta, x[:, 6:9], x[:, 9:12])
-        return BatchEvaluation(xdot, F, urel, alpha, beta, U, prop, BFM, F_vm, dXe)
+        return BatchEvaluation(xdot, F, am_in, alpha, beta, U, prop, BFM, F_vm, dXe)

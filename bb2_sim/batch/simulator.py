@@ -115,7 +115,7 @@ class BatchSimulator:
         f = self.model.evaluate
         with np.errstate(all="ignore"):
             ev1 = f(t, x, act, self.dmem, boats)
-            self.dmem.store(t, ev1.urel_sections, boats)
+            self.dmem.store(t, ev1.added_mass_inputs, boats)
             k1 = ev1.xdot
             x2 = x + (h * 0.5) * k1
             k2 = f(t + h * 0.5, x2, act, self.dmem, boats).xdot

@@ -112,17 +112,22 @@ def test_batch_evaluation_equals_single_evaluation_with_per_boat_times_and_profi
     t = np.array([0.3, 1.7, 2.45])
     sim = BatchSimulator(bm, x)
     act = sim.actuators.step(rng.normal(0.0, 3.0, (3, 5)), np.array([1.0, 1.2, 0.9]), np.array([0.0, 100.0, 0.0]))
+    x_before = x.copy()                      # the Derivative blocks' sample: an evaluation 0.05 s before
+    x_before[:, 6:12] += rng.normal(0.0, 0.05, (3, 6))
     mem = bm.new_memory()
-    mem.store(t - 0.05, rng.normal(0.0, 0.1, (3, 15, 3)))
+    mem.store(t - 0.05, bm.evaluate(t - 0.05, x_before, act, bm.new_memory()).added_mass_inputs)
     ev = bm.evaluate(t, x, act, mem)
+    assert np.abs(ev.added_mass).max() > 1e3   # the added mass matters here
     from bb2_sim.actuators import ActuatorOutputs
     from bb2_sim.added_mass import DerivativeMemory
     for i, w in enumerate(waves):
         single = BB2Model(model.surfaces, profile="corrected")
         single.wave = w
+        act1 = ActuatorOutputs(act.planes_deg[i], act.rps[i], act.dmass_kg[i])
         dm = DerivativeMemory()
-        dm.store(t[i] - 0.05, mem._u[1, i])
-        e1 = single.evaluate(t[i], x[i], ActuatorOutputs(act.planes_deg[i], act.rps[i], act.dmass_kg[i]), dm)
+        dm.store(t[i] - 0.05, single.evaluate(t[i] - 0.05, x_before[i], act1, DerivativeMemory()).urel_sections)
+        e1 = single.evaluate(t[i], x[i], act1, dm)
+        np.testing.assert_allclose(ev.added_mass[i], e1.added_mass, rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(ev.xdot[i], e1.xdot, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(ev.hydrostatic[i], e1.hydrostatic, rtol=1e-12, atol=1e-6)
         assert ev.alpha_deg[i] == pytest.approx(e1.alpha_deg, abs=1e-12)
@@ -226,6 +231,30 @@ def test_a_diverging_boat_is_reported_frozen_and_leaves_the_others_alone(calm_mo
 
 
 # ------------------------------------------------------------------------------------------------ (d) bad input
+def test_boats_retired_mid_run_leave_the_others_added_mass_memories_alone(calm_model):
+    """Boats in seas and in calm water; two retired mid-run (one in a sea): the others' Derivative blocks (the
+    motion's and the sections' wave velocities, kept per boat) go on as their single runs'."""
+    seas = [3, 5, 0, 4, 0]
+    x0 = _mixed_x0()[:5]
+    batch = BatchSimulator(BatchModel.from_sea_states(calm_model, seas), x0)
+    singles = [Simulator(_single(calm_model, s), x0[i]) for i, s in enumerate(seas)]
+    live = [0, 1, 2, 3, 4]
+    xb, xs = [], []
+    for k in range(120):
+        if k == 40:
+            batch.retire([1, 2])
+            live = [0, 3, 4]
+        rec = batch.step(PLANES[:5], RPS[:5])
+        assert rec.boats.tolist() == live or (k < 40 and rec.boats.tolist() == [0, 1, 2, 3, 4])
+        for i in live:
+            singles[i].step(PLANES[i], RPS[i])
+        if k >= 40:
+            xb.append(batch.x[live])
+            xs.append([singles[i].x for i in live])
+    assert np.abs(rec.ev.added_mass).max() > 1e3          # the added mass matters here
+    _assert_close(np.array(xb), np.array(xs))
+
+
 def test_bad_shapes_and_refused_environments_give_clear_errors(calm_model):
     bm = BatchModel(calm_model, n_boats=2)
     with pytest.raises(ValueError, match=r"initial states must be \(2, 12\)"):
