@@ -49,7 +49,7 @@ class GraphMonitor:
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
-        from rclpy.qos import HistoryPolicy
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy
         from rclpy.serialization import deserialize_message
         from rclpy.signals import SignalHandlerOptions
 
@@ -99,9 +99,13 @@ class GraphMonitor:
             latest_only("/bb2/mission/progress"), raw=True)
         self.recorder_ack_s: float | None = None  # the newest /bb2/recorder/ack: the recorder holds every step to it
         self._ack_type = message_class("std_msgs/msg/Header")
+        ack_qos = latest_only("/bb2/recorder/ack")
+        # the recorder's writer keeps its latest acknowledgements (transient local): a monitor that matches it after
+        # the last one went out (a short lockstep run on a fast machine ends within a second) still learns where
+        # it stands, instead of waiting for news that will not come
+        ack_qos.durability = DurabilityPolicy.TRANSIENT_LOCAL
         self._ack_sub = self._poll_node.create_subscription(
-            self._ack_type, boat_topic("/bb2/recorder/ack", self.namespace), _unused,
-            latest_only("/bb2/recorder/ack"), raw=True)
+            self._ack_type, boat_topic("/bb2/recorder/ack", self.namespace), _unused, ack_qos, raw=True)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(n)
         self._stop = threading.Event()

@@ -1,0 +1,93 @@
+"""bb2-launch's monitor learns the recorder's last acknowledgement even when it matches the recorder after it
+was sent (real recorder, real DDS).
+
+A lockstep run can end within a second of wall time on a fast machine; the monitor, whose participant may discover
+the recorder's ack writer only after the last acknowledgement went out, then waited 30 s for a recorder that held
+everything and said "stopping anyway" (a clean-clone CI run of test_composition).  The ack writer keeps its latest
+acknowledgements (transient local); the monitor's reader now asks for them.
+"""
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.ros
+rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
+
+from bb2_msgs_py import conversions as cv  # noqa: E402
+from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
+from bb2_sim.state import VehicleState  # noqa: E402
+
+from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def test_the_launch_monitor_started_after_the_last_ack_still_learns_it(tmp_path):
+    from rclpy.executors import SingleThreadedExecutor
+
+    from bb2_tools.graph_monitor import GraphMonitor
+
+    domain = claimed_domain()
+    rec = subprocess.Popen([sys.executable, "-m", "bb2_tools.recorder", "--out", str(tmp_path / "bag")], cwd=REPO,
+                           env=ros_env(domain), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    node = rclpy.create_node("late_ack_test", context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+    spinner = threading.Thread(target=spin, daemon=True)
+    spinner.start()
+    acks: list[int] = []  # what a reader matched before the run gets
+    node.create_subscription(message_class("std_msgs/msg/Header"), "/bb2/recorder/ack",
+                             lambda m: acks.append(cv.stamp_to_ns(m.stamp)), qos_profile("/bb2/recorder/ack",
+                                                                                         reader=True))
+    monitor = None
+    try:
+        pub = node.create_publisher(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
+                                    qos_profile("/bb2/state_native"))
+        end = time.monotonic() + 60
+        while pub.get_subscription_count() == 0 or node.count_publishers("/bb2/recorder/ack") == 0:
+            assert rec.poll() is None, rec.communicate()[0][-3000:]
+            assert time.monotonic() < end, "the recorder never came up"
+            time.sleep(0.05)
+        time.sleep(0.5)                     # the early reader matched too
+        for k in range(5):                  # a short run: five states 0.05 s apart
+            pub.publish(cv.state_native_message(VehicleState.from_vector(0.05 * k, [0.0] * 12)))
+            time.sleep(0.05)
+        end = time.monotonic() + 10
+        while (not acks or time.monotonic() < end - 9) and time.monotonic() < end:
+            time.sleep(0.05)
+        assert acks, "the recorder sent no acknowledgement"
+        n_acks = len(acks)
+        monitor = GraphMonitor(domain, node_name="late_monitor")   # after the run: nothing new will be sent
+        end = time.monotonic() + 15
+        while monitor.recorder_ack_s is None and time.monotonic() < end:
+            time.sleep(0.05)
+        assert len(acks) == n_acks          # indeed nothing new was sent meanwhile
+        assert monitor.recorder_ack_s is not None, "the monitor never learnt the recorder's last acknowledgement"
+        assert cv.seconds_to_ns(monitor.recorder_ack_s) == max(acks), (monitor.recorder_ack_s, acks)
+    finally:
+        if monitor is not None:
+            monitor.close()
+        stop.set()
+        spinner.join(2)
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+        rec.send_signal(signal.SIGINT)
+        try:
+            rec.wait(30)
+        except subprocess.TimeoutExpired:
+            rec.kill()
+            rec.wait()
