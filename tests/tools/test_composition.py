@@ -112,8 +112,8 @@ def test_the_graph_composed_or_not_equals_the_library_runner(tmp_path, canyon_20
     params.write_text(f"simulator:\n  ros__parameters:\n    trajectory_csv: {csv_file}\n")
     out = tmp_path / "run"
     r = subprocess.run([PY, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--params", str(params),
-                        "--end-at", "simulator", "--timeout", "300", "--status-period", "0.5", *LAYOUTS[layout]], capture_output=True,
-                       text=True, env=ros_env(), timeout=400, cwd=tmp_path)
+                        "--end-at", "simulator", "--timeout", "300", "--status-period", "0.5", *LAYOUTS[layout]],
+                       capture_output=True, text=True, env=ros_env(), timeout=400, cwd=tmp_path)
     assert r.returncode == 0, r.stderr[-4000:]
     assert "mission complete" in r.stderr and "nodes 6/6" in r.stderr, r.stderr[-3000:]
     assert "stopping anyway" not in r.stderr, r.stderr[-3000:]  # the launcher learnt that the recorder holds the end
