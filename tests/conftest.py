@@ -42,3 +42,12 @@ def pytest_collection_modifyitems(config, items):
         r = (0, -slow.kwargs.get("seconds", 0)) if slow else (1, 0) if item.get_closest_marker("ros") else (2, 0)
         rank[item.path] = min(rank.get(item.path, (2, 0)), r)
     items.sort(key=lambda item: rank[item.path])   # stable: collection order within a group
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """The ros2 CLI daemons of the domains this process claimed (tests/rosenv.py) end with it."""
+    import sys
+
+    rosenv = sys.modules.get("rosenv")
+    if rosenv is not None and rosenv.claimed_ids:
+        rosenv.stop_ros2_daemons(rosenv.claimed_ids)

@@ -140,6 +140,7 @@ def library_trajectory(mission_file: Path):
 
 
 _domain_claims: list[int] = []  # the claims' lock descriptors, held until this test process ends
+claimed_ids: list[int] = []     # the domains this test process claimed
 
 
 def claimed_domain() -> int:
@@ -156,6 +157,7 @@ def claimed_domain() -> int:
         fd = claim_domain(d)
         if fd is not None:
             _domain_claims.append(fd)
+            claimed_ids.append(d)
             return d
     raise AssertionError("every ROS domain in 102..232 is claimed by another test process")
 
@@ -184,3 +186,24 @@ def command_line(pid: int) -> str:
     except OSError:
         return ""
 
+
+def stop_ros2_daemons(domains) -> list[int]:
+    """End the ``ros2`` CLI daemons (``ros2cli.daemon.daemonize``, one per domain, started by ``ros2 param`` /
+    ``ros2 launch`` and left running by them) of ``domains``: the domains this test process claimed, so no other
+    process uses them. Returns the pids signalled."""
+    import os
+    import re
+    import signal
+
+    wanted = {int(d) for d in domains}
+    done = []
+    for cmd in Path("/proc").glob("[0-9]*/cmdline"):
+        line = command_line(int(cmd.parent.name))
+        m = re.search(r"--ros-domain-id (\d+)", line)
+        if "ros2cli.daemon.daemonize" in line and m and int(m.group(1)) in wanted:
+            try:
+                os.kill(int(cmd.parent.name), signal.SIGTERM)
+                done.append(int(cmd.parent.name))
+            except OSError:
+                pass
+    return done
