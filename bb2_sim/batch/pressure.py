@@ -60,12 +60,7 @@ class BatchPressure:
         self._S0, self._S1 = hydro._S0, hydro._S1          # (B, 6), (B, 3, 6) block moments
         self._pivots = hydro._pivots                         # (B - 1, 3) plane pivots, body axes
         self._hydro = hydro
-        # R_i(delta) = RX_i Rz(delta) RX_i^T = cos(delta) C_i + sin(delta) S_i + E_i
-        RX = hydro._hinges                                   # (B - 1, 3, 3) hinge frames
-        Pc, Ps, Pe = np.diag([1.0, 1.0, 0.0]), np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]), \
-            np.diag([0.0, 0.0, 1.0])
-        self._C, self._S, self._E = (RX @ P @ RX.transpose(0, 2, 1) for P in (Pc, Ps, Pe))
-        self._RX = RX
+        self._RX = hydro._hinges                            # (B - 1, 3, 3) hinge frames
         self._fold = self._fold_coefficients()              # (5 * 6, 4 * 6): see prepare
 
     def _fold_coefficients(self) -> np.ndarray:
@@ -77,10 +72,15 @@ class BatchPressure:
         c^2 K0 + cs K1 + s^2 K2 + c K3 + s K4 + K5: the K's (plane, term) are made here once, from the basis
         matrices, as (30, 24) for one product per step."""
         rg = self.rho * self.g
+        # R_b(delta) = RX_b Rz(delta) RX_b^T = cos(delta) C_b + sin(delta) S_b + E_b
+        RX = self._RX
+        Pc, Ps, Pe = np.diag([1.0, 1.0, 0.0]), np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]), \
+            np.diag([0.0, 0.0, 1.0])
+        C, S, E = (RX @ P @ RX.transpose(0, 2, 1) for P in (Pc, Ps, Pe))
         term = {(0, 0): 0, (0, 1): 1, (1, 0): 1, (1, 1): 2, (0, 2): 3, (2, 0): 3, (1, 2): 4, (2, 1): 4, (2, 2): 5}
         K = np.zeros((len(self._pivots), 6, 4, 6))
         for b, (P, S0, S1) in enumerate(zip(self._pivots, self._S0[1:], self._S1[1:])):
-            basis = (self._C[b], self._S[b], self._E[b])   # R_b = c C_b + s S_b + E_b: the factors c, s, 1
+            basis = (C[b], S[b], E[b])                      # R_b = c C_b + s S_b + E_b: the factors c, s, 1
             for v, Rv in enumerate(basis):                  # the rotation of the loads: factor v
                 K[b, term[v, 2], 0] += _plane_load(P, Rv, -rg * S0)   # a: the z0 column, H-free
                 for k in range(3):                          # row k of B: P_b[k] S0_b, then R_b[k] S1_b (factor u)
