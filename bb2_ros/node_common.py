@@ -308,7 +308,10 @@ default is 0, normal scheduling): below the simulator's stepping thread (its ``r
 normally scheduled process (the recorder, a plotter, someone else's build).  Measured
 (``benchmarks/graph_speed.py``): at 100 Hz, state -> plane command latency p99 3.5 -> 1.6 ms.  Not in lockstep: at
 a real-time priority a lockstep graph's controllers took a core from the normally scheduled parts of a real-time
-graph beside it (a HIL simulator's command reception, starved 1.7 s into its failsafe)."""
+graph beside it (a HIL simulator's command reception, starved 1.7 s into its failsafe).  The simulator's own
+``callback_priority`` (its command reception; real time only) is set to it too: normally scheduled, the reception
+waited for a core past the command timeout beside two CPU hogs and two real-time busy loops (the HIL test: failed
+2 of 2 runs; with it passed 3 of 3)."""
 REALTIME_CONTROLLERS = ("path_following", "l1_autopilot", "mixer")
 """The nodes with a ``callback_priority``, which ``bb2-launch`` sets to CALLBACK_PRIORITY_REALTIME in real time."""
 

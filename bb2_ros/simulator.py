@@ -30,6 +30,12 @@ other one is read-only (fixed at start-up; the set is refused):
                        holds on a loaded machine (HIL); 0 = normal scheduling.  Refused by the OS (no
                        CAP_SYS_NICE / rtprio limit): one warning, normal scheduling.  A thread that overruns every
                        step for a second gives the priority up (it would starve its core).
+``callback_priority``  real time: SCHED_FIFO priority (1-99) of the process's executor and middleware threads,
+                       which receive the commands, so a command is not queued behind other processes (a HIL
+                       bench's autopilot answers in time, but a normally scheduled reception beside a busy
+                       real-time thread was starved past the command timeout); 0 = normal scheduling (default;
+                       ``bb2-launch``, the launch files and ``examples/hil`` set 40).  Lockstep:
+                       ``lockstep_priority`` decides.
 ``hold_cpu_dma_latency`` real time: hold ``/dev/cpu_dma_latency`` at 0 us while running (the PM QoS request
                        of cyclictest and RT setups: idle cores wake without deep C-state or halt exits;
                        measured here: a DDS round trip 150 -> 102 us).  Refused (not root): one warning.
@@ -136,8 +142,8 @@ from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.state import VehicleState
 
 from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, build_piece, check_remaps,
-                                 contract_publisher, declare, declare_lockstep_priority, mission_only, node_options,
-                                 require_choice, require_positive, run_node)
+                                 contract_publisher, declare, declare_callback_priority, declare_lockstep_priority,
+                                 mission_only, node_options, require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics",
@@ -247,7 +253,12 @@ class Simulator(Node):
                        lambda v: setattr(self.warn, "period_s", v), positive("warn_throttle_s"))
         strict = bool(P("strict_remaps", False, "a remap rule naming no topic of this node is an error"))
         check_remaps(node, argv, TOPICS_OUT + TOPICS_IN + SENSOR_TOPICS + (NAV_STATE_TOPIC,), strict=strict)
-        declare_lockstep_priority(self, lockstep=self.time_mode is TimeMode.LOCKSTEP)
+        lockstep = self.time_mode is TimeMode.LOCKSTEP
+        declare_lockstep_priority(self, lockstep=lockstep)
+        said = self.callback_scheduling
+        declare_callback_priority(self)  # real time: the command reception (lockstep: lockstep_priority decides)
+        if lockstep:
+            self.callback_priority, self.callback_scheduling = 0, said
 
         # this node's pieces only: the ROM at the mission's initial state and the stack's nominal propeller
         self.mission = mission_only(self.mission_file)

@@ -467,8 +467,9 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 ros += ["-p", "wait_for_readers:=true"]
             if mode == "lockstep" and record:  # nor when the recorder stalls: the graph waits for it
                 ros += ["-p", f"recorder_ack_window:={RECORDER_ACK_WINDOW}"]
-            if mode == "realtime":  # the clock starts once the controllers answer, not on the start-up failsafe
-                ros += ["-p", "wait_for_commands:=true"]
+            if mode == "realtime":  # the clock starts once the controllers answer, not on the start-up failsafe;
+                # their commands are received at the controllers' priority (not queued behind other processes)
+                ros += ["-p", "wait_for_commands:=true", "-p", f"callback_priority:={CALLBACK_PRIORITY_REALTIME}"]
         else:
             ros += ["-p", "use_sim_time:=true"]
             if mode == "realtime" and name in REALTIME_CONTROLLERS:  # their answers do not wait for a core

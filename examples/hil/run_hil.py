@@ -29,7 +29,9 @@ filter), not on the simulator's state.  The mission the processes get is the giv
 
 In real time the autopilot runs at SCHED_FIFO priority 40 (``--autopilot-priority``), below the simulator's
 stepping thread: a real autopilot has a computer of its own, and on a shared, busy machine a starved one would
-miss the simulator's command timeout (seen beside two CPU hogs: 0.5 s without a command, the failsafe).
+miss the simulator's command timeout (seen beside two CPU hogs: 0.5 s without a command, the failsafe).  The
+simulator receives the commands at SCHED_FIFO 40 too (``callback_priority`` in ``simulator_hil.yaml``): normally
+scheduled, its reception once waited 1.1 s for a core beside two CPU hogs and another test's processes.
 
 Exit status: 0 the flight finished with finite states and no failsafe after the autopilot took over;
 1 otherwise (the monitor's summary says why).

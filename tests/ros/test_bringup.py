@@ -212,6 +212,9 @@ def test_ros2_launch_in_real_time_ends_once_a_recorder_behind_holds_the_last_ste
     assert p.returncode == 0 and "the recorder acknowledged the final step after" in out, out[-3000:]
     st = states(bag)
     assert max(st) == 6.0 and len(st) == 121, (max(st), len(st))  # every state, the last one included
+    # in real time the launch file puts the simulator's command reception at the controllers' priority
+    assert "[simulator]: callbacks at SCHED_FIFO 40 (" in out \
+        or "[simulator]: callbacks with normal (SCHED_FIFO 40 refused" in out, out[-3000:]
 
 
 def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):

@@ -124,9 +124,16 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
             procs.append(spawn_node("bb2_ros.mixer", domain_id, "-p", f"mission_file:={mission}", "-p",
                                     f"callback_priority:={prio}", "-p", "status_period_s:=0.2", "-r",
                                     f"__node:={name}"))
-        # the simulator (lockstep, waiting for answers that do not come): its process at lockstep_priority
+        # the simulator (lockstep, waiting for answers that do not come): its process at lockstep_priority (its
+        # callback_priority, the real-time command reception's, does not apply in lockstep)
         procs.append(spawn_node("bb2_ros.simulator", domain_id, "-p", f"mission_file:={mission}", "-p",
-                                "lockstep_priority:=21", "-p", "status_period_s:=0.2"))
+                                "lockstep_priority:=21", "-p", "callback_priority:=23", "-p", "status_period_s:=0.2"))
+        # a simulator in real time (on the failsafe: nobody answers): its command reception at callback_priority,
+        # its stepping thread at realtime_priority
+        procs.append(spawn_node("bb2_ros.simulator", domain_id, "-p", f"mission_file:={mission}", "-p",
+                                "time_mode:=realtime", "-p", "callback_priority:=23", "-p", "realtime_priority:=27",
+                                "-p", "hold_cpu_dma_latency:=false", "-p", "duration_s:=1000.0",
+                                "-p", "status_period_s:=0.2", "-r", "__node:=sim_rt"))
         # composed with the simulator in lockstep (default lockstep_priority 0), a controller's 40 does not apply:
         # the simulator paces the process, and at a real-time priority it would run ahead of outside readers
         procs.append(subprocess.Popen(
@@ -142,12 +149,27 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
             return {st.hardware_id: {kv.key: kv.value for kv in st.values} for a in arrays for st in a.status
                     if st.name in ("bb2/mixer", "bb2/simulator")}
 
-        probe.wait(lambda: {"/mixer_rt", "/mixer_normal", "/simulator", "/mixer_c"} <= set(statuses()), 60,
-                   "the mixers' and the simulator's status", procs[0])
+        probe.wait(lambda: {"/mixer_rt", "/mixer_normal", "/simulator", "/sim_rt", "/mixer_c"} <= set(statuses())
+                   and statuses()["/sim_rt"].get("scheduling", "").startswith(("SCHED_FIFO", "normal")), 60,
+                   "the mixers' and the simulators' status", procs[0])
         rt, normal = statuses()["/mixer_rt"], statuses()["/mixer_normal"]
         assert normal["callback_scheduling"] == "normal", normal
         sim = statuses()["/simulator"]["callback_scheduling"]
         assert sim.startswith("SCHED_FIFO 21 (" if _may_use_fifo() else "normal (SCHED_FIFO 21 refused: "), sim
+        sim_rt = statuses()["/sim_rt"]
+        rt_pid = procs[3].pid
+        rt_threads = _threads(rt_pid)
+        rt_dds = [v for v in rt_threads.values() if v[0].startswith("dds.")]
+        if _may_use_fifo():
+            assert sim_rt["callback_scheduling"] == \
+                f"SCHED_FIFO 23 ({len(rt_dds) + 1} threads: the executor's and the middleware's)", sim_rt
+            assert sim_rt["scheduling"] == "SCHED_FIFO 27", sim_rt
+            assert rt_threads[rt_pid][1:] == (os.SCHED_FIFO, 23) and rt_dds \
+                and all(v[1:] == (os.SCHED_FIFO, 23) for v in rt_dds), rt_threads
+            # the stepping thread keeps its own priority (started before, real-time already)
+            assert sum(v[1:] == (os.SCHED_FIFO, 27) for v in rt_threads.values()) == 1, rt_threads
+        else:
+            assert sim_rt["callback_scheduling"].startswith("normal (SCHED_FIFO 23 refused: "), sim_rt
         composed = statuses()["/mixer_c"]["callback_scheduling"]
         assert composed == "normal (composed with the simulator in lockstep: its lockstep_priority 0 decides)", composed
         assert os.sched_getscheduler(procs[-1].pid) == os.SCHED_OTHER

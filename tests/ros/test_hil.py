@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -124,6 +125,10 @@ def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
     # the simulator's status: real-time mode; once the autopilot's commands arrived, never a failsafe again
     st = lst.status
     assert st and all(s["mode"] == "realtime" for s in st)
+    # its command reception at the autopilot's priority (simulator_hil.yaml), where the OS allows it
+    may_fifo = os.geteuid() == 0 or resource.getrlimit(resource.RLIMIT_RTPRIO)[0] >= 40
+    assert st[-1]["callback_scheduling"].startswith("SCHED_FIFO 40 (" if may_fifo else "normal (SCHED_FIFO 40 refused"), \
+        st[-1]
     first_ok = next(i for i, s in enumerate(st) if s["failsafe"] == "false")
     assert float(st[first_ok]["sim_time_s"]) < 3.0  # the autopilot took over within the first seconds
     assert all(s["failsafe"] == "false" for s in st[first_ok:]), [s["failsafe_reason"] for s in st[first_ok:]]

@@ -154,11 +154,12 @@ def test_graph_specs_pass_mission_mode_params_and_sim_time(tmp_path):
     # the params file first: for '/**' keys the last source wins, so the launcher's -p values must follow it
     assert sim[sim.index("--ros-args") + 1:] == ["--params-file", str(params), "-p", f"mission_file:={mission}",
                                                  "-p", "time_mode:=realtime", "-p", "wait_for_readers:=true",
-                                                 "-p", "wait_for_commands:=true"]
+                                                 "-p", "wait_for_commands:=true",
+                                                 "-p", f"callback_priority:={L.CALLBACK_PRIORITY_REALTIME}"]
     # lockstep with a recorder: the simulator also waits for the recorder's acknowledgement (issue 10)
     lock = {s.name: s for s in L.graph_specs(mission, run, mode="lockstep", runner="python")}["simulator"].argv(0)
     assert f"recorder_ack_window:={L.RECORDER_ACK_WINDOW}" in lock and L.RECORDER_ACK_WINDOW > 0
-    assert not [a for a in lock if "wait_for_commands" in a]  # lockstep waits for every answer anyway
+    assert not [a for a in lock if "wait_for_commands" in a or "callback_priority" in a]  # lockstep: none of these
     bare = {s.name: s for s in L.graph_specs(mission, run, mode="lockstep", runner="python", record=False)}
     assert not [a for a in bare["simulator"].argv(0) if "recorder_ack_window" in a or "wait_for_readers" in a]
     # a restarted path_following rejoins the run where it stands (issue 10, point 3); the first attempt does not

@@ -150,8 +150,10 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
                   "wait_for_readers": record, "wait_for_commands": time_mode == "realtime",
                   "recorder_ack_window": RECORDER_ACK_WINDOW if record and time_mode == "lockstep" else 0}
     controllers = [("planner", True), ("path_following", False), ("l1_autopilot", False), ("mixer", False)]
-    # in real time the controllers' answers do not wait for a core (as bb2-launch sets them)
+    # in real time the controllers' answers do not wait for a core, nor the simulator's reception of them (as
+    # bb2-launch sets them)
     rt = {"callback_priority": CALLBACK_PRIORITY_REALTIME} if time_mode == "realtime" else {}
+    sim_values.update(rt)
     if compose:
         nodes = [(exe, {**common, "use_sim_time": True, **(rt if exe in REALTIME_CONTROLLERS else {})})
                  for exe, _bg in controllers]
