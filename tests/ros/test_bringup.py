@@ -50,9 +50,14 @@ def ws(tmp_path_factory):
 
 
 def launch(ws, domain: int, *args: str) -> subprocess.Popen:
+    """``ros2 launch bb2_bringup ARGS`` on ``domain``.  Its temporary files go under the test's folder: launch_ros
+    writes each node's parameters to a ``launch_params_*`` file it never deletes (ros2/launch_ros#5, open), and
+    the suite's launches left dozens a run in /tmp."""
     env, install, tmp = ws
+    scratch = tmp / "launch_tmp"
+    scratch.mkdir(exist_ok=True)
     return subprocess.Popen(["bash", "-c", f"source {install / 'setup.bash'} && exec ros2 launch bb2_bringup "
-                             + " ".join(args)], cwd=tmp, env=dict(env, ROS_DOMAIN_ID=str(domain)),
+                             + " ".join(args)], cwd=tmp, env=dict(env, ROS_DOMAIN_ID=str(domain), TMPDIR=str(scratch)),
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
 
 
