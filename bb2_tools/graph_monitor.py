@@ -162,6 +162,13 @@ class GraphMonitor:
             if "simulator" not in st.name:
                 continue
             vals = {kv.key: kv.value for kv in st.values}
+            try:  # the sim time the status was sent at: the newest known if /clock has not come (yet) or is older
+                t = float(vals["sim_time_s"])
+                with self._lock:
+                    if self.sim_time_s is None or t > self.sim_time_s:
+                        self.sim_time_s = t
+            except (KeyError, ValueError):
+                pass
             state = vals.get("state", "").lower()
             if state in END_WORDS:
                 self.status_end = True

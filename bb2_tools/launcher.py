@@ -283,17 +283,16 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 elif now - last_sim[1] > stall_timeout_s:
                     reason, code = (f"stalled: sim time stuck at {monitor.sim_time_s:.2f} s for "
                                     f"{now - last_sim[1]:.0f} s of wall time (--stall-timeout {stall_timeout_s:g})"), 1
-            if reason:
-                break
-            if monitor is not None and (tty or now - last_status >= status_period_s):
+            if monitor is not None and (reason or tty or now - last_status >= status_period_s):
+                # a status line every status_period_s, and always one when the run ends (a graph that flew within
+                # its start-up, before the first period, still shows where it stopped and how many nodes ran)
                 line = format_status(monitor.sim_time_s, monitor.progress, monitor.rtf(),
                                      sum(sup.specs[n].nodes for n in sup.running()),
                                      sum(sup.specs[n].nodes for n in sup.order), now - t0)
-                if tty:
-                    print("\r\033[K" + line, end="", file=out, flush=True)
-                else:
-                    print(line, file=out, flush=True)
+                print("\r\033[K" + line if tty else line, end="" if tty else "\n", file=out, flush=True)
                 last_status = now
+            if reason:
+                break
             time.sleep(0.1)
         if tty:
             print(file=out)

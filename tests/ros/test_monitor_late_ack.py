@@ -91,3 +91,47 @@ def test_the_launch_monitor_started_after_the_last_ack_still_learns_it(tmp_path)
         except subprocess.TimeoutExpired:
             rec.kill()
             rec.wait()
+
+
+def test_the_launch_monitor_takes_the_sim_time_of_the_simulators_status_when_no_clock_came():
+    """A graph that flies within the launcher's start-up may end before the monitor's /clock reader matched: the
+    simulator's status (its sim time, sent with every status) still gives the closing line its sim time."""
+    from bb2_tools.graph_monitor import GraphMonitor
+
+    domain = claimed_domain()
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    node = rclpy.create_node("status_only_test", context=ctx)
+    diag = message_class("diagnostic_msgs/msg/DiagnosticArray")
+    status_t = message_class("diagnostic_msgs/msg/DiagnosticStatus")
+    kv_t = message_class("diagnostic_msgs/msg/KeyValue")
+
+    def status(state: str, t: float):
+        st = status_t(name="bb2/simulator", hardware_id="/simulator",
+                      values=[kv_t(key="state", value=state), kv_t(key="sim_time_s", value=f"{t:.6f}")])
+        return diag(status=[st])
+
+    monitor = GraphMonitor(domain, node_name="status_monitor", end_at="simulator")
+    try:
+        pub = node.create_publisher(diag, "/bb2/status", qos_profile("/bb2/status"))
+        end = time.monotonic() + 30
+        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+            time.sleep(0.05)
+        assert pub.get_subscription_count() > 0, "the monitor's status reader never matched"
+        pub.publish(status("running", 7.25))
+        end = time.monotonic() + 10
+        while monitor.sim_time_s is None and time.monotonic() < end:
+            time.sleep(0.05)
+        assert monitor.sim_time_s == 7.25 and not monitor.mission_complete
+        pub.publish(status("finished", 20.0))
+        end = time.monotonic() + 10
+        while not monitor.mission_complete and time.monotonic() < end:
+            time.sleep(0.05)
+        assert monitor.mission_complete and monitor.sim_time_s == 20.0, monitor.sim_time_s
+        pub.publish(status("finished", 3.0))  # an older time (a status late on its way) never takes it back
+        time.sleep(0.5)
+        assert monitor.sim_time_s == 20.0
+    finally:
+        monitor.close()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
