@@ -323,10 +323,11 @@ def _priority_check(name: str):
     return check
 
 
-def declare_callback_priority(shell) -> int:
+def declare_callback_priority(shell, *, applies: bool = True) -> int:
     """Declare ``callback_priority`` on a controller's shell (``shell.callback_priority``; :func:`run_nodes` applies
     the largest of a process's nodes' to the process, :func:`set_callback_priority`, and sets
-    ``shell.callback_scheduling``, what its status says)."""
+    ``shell.callback_scheduling``, what its status says).  ``applies`` False (the simulator in lockstep, where its
+    ``lockstep_priority`` decides): declared, but 0 for the process, and ``callback_scheduling`` left as it is."""
     node = _node_of(shell)
     shell.callback_priority = int(declare(
         node, "callback_priority", 0,
@@ -336,6 +337,9 @@ def declare_callback_priority(shell) -> int:
         "by the OS (no CAP_SYS_NICE / rtprio limit): a warning, normal scheduling.  Composed with the simulator "
         "in lockstep, the simulator's lockstep_priority decides",
         check=_priority_check("callback_priority")))
+    if not applies:
+        shell.callback_priority = 0
+        return 0
     shell.callback_scheduling = "normal" if shell.callback_priority == 0 else "not yet set (the node is not spinning)"
     return shell.callback_priority
 

@@ -255,10 +255,8 @@ class Simulator(Node):
         check_remaps(node, argv, TOPICS_OUT + TOPICS_IN + SENSOR_TOPICS + (NAV_STATE_TOPIC,), strict=strict)
         lockstep = self.time_mode is TimeMode.LOCKSTEP
         declare_lockstep_priority(self, lockstep=lockstep)
-        said = self.callback_scheduling
-        declare_callback_priority(self)  # real time: the command reception (lockstep: lockstep_priority decides)
-        if lockstep:
-            self.callback_priority, self.callback_scheduling = 0, said
+        # real time: the command reception's priority (lockstep: lockstep_priority decides)
+        declare_callback_priority(self, applies=not lockstep)
 
         # this node's pieces only: the ROM at the mission's initial state and the stack's nominal propeller
         self.mission = mission_only(self.mission_file)
