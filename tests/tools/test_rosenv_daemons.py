@@ -18,10 +18,11 @@ def _fake_daemon(domain: int) -> subprocess.Popen:
 
 
 def test_only_the_daemons_of_the_given_domains_are_stopped():
-    mine, other = _fake_daemon(231), _fake_daemon(23)
+    # domains no ROS participant can use (ROS 2 allows 0..232): no real daemon of another test process matches
+    mine, other = _fake_daemon(241), _fake_daemon(243)
     try:
         time.sleep(0.2)
-        assert stop_ros2_daemons([231, 232]) == [mine.pid]
+        assert stop_ros2_daemons([241, 242]) == [mine.pid]
         assert mine.wait(10) != 0
         time.sleep(0.2)
         assert other.poll() is None
