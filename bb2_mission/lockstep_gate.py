@@ -63,6 +63,7 @@ class Counter(StrEnum):
     LOCKSTEP_TIMEOUTS = "lockstep_timeouts"
     LOCKSTEP_RESENDS = "lockstep_resends"
     FAILSAFE_STEPS = "failsafe_steps"
+    FAILSAFE_STEPS_AFTER_TAKEOVER = "failsafe_steps_after_takeover"  #: ... once a step had gone on valid commands
 
 
 def clamp_planes_deg(planes_deg: np.ndarray, limit_deg: float) -> np.ndarray:
@@ -233,6 +234,9 @@ class LockstepGate:
     rps_wall: float = -math.inf
     failsafe: bool = False
     failsafe_reason: str = ""
+    took_over: bool = False                  #: a step went on valid commands (the controllers took over)
+    command_gap_max_s: float = 0.0           #: since the takeover: the longest wall gap between two valid plane
+    #: (or two valid propeller) commands -- how close a real-time autopilot came to ``command_timeout_s``
     _ans_planes: np.ndarray | None = None    # lockstep: answers to the step being awaited
     _ans_rps: float | None = None
     _first_answer_wall: float | None = None
@@ -254,6 +258,7 @@ class LockstepGate:
         v = self.validator.planes(names, positions_rad, frame_id, stamp_ns, now_ns)
         self.count(v.counter)
         if v.accepted:
+            self._gap(wall - self.planes_wall)
             self.planes_deg, self.planes_wall = v.value, wall
             if self.mode is TimeMode.LOCKSTEP:
                 self._ans_planes = v.value
@@ -264,10 +269,15 @@ class LockstepGate:
         v = self.validator.propeller(names, velocities_rad_s, frame_id, stamp_ns, now_ns)
         self.count(v.counter)
         if v.accepted:
+            self._gap(wall - self.rps_wall)
             self.rps, self.rps_wall = v.value, wall
             if self.mode is TimeMode.LOCKSTEP:
                 self._ans_rps = v.value
         return v
+
+    def _gap(self, gap_s: float) -> None:
+        if self.took_over and gap_s > self.command_gap_max_s:  # (-inf before the first: the takeover comes after)
+            self.command_gap_max_s = gap_s
 
     # -- lockstep
     def state_sent(self, wall: float) -> None:
@@ -365,6 +375,10 @@ class LockstepGate:
         self.failsafe, self.failsafe_reason = failsafe, why
         if failsafe:
             self.count(Counter.FAILSAFE_STEPS)
+            if self.took_over:  # not the start-up wait for the controllers: they had answered, then fell silent
+                self.count(Counter.FAILSAFE_STEPS_AFTER_TAKEOVER)
+        else:
+            self.took_over = True
         return StepDecision(planes, rps, failsafe, why)
 
     def stepped(self) -> None:

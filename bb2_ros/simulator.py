@@ -288,6 +288,7 @@ class Simulator(Node):
                         command_timeout_s=self.command_timeout_s),
             nominal_rps=build_piece(self.mission, nominal_rps))
         self._failsafe_shown = False  # the failsafe state last logged / published
+        self._takeover_t: float | None = None  # sim time of the first step on valid commands
         if ack_window and self.time_mode is not TimeMode.LOCKSTEP:
             node.get_logger().warning("recorder_ack_window applies in lockstep only: ignored in real time")
             ack_window = 0
@@ -508,6 +509,8 @@ class Simulator(Node):
         if self._wait_said:
             self.get_logger().info(f"the recorder caught up: stepping on from t = {self.t:.3f} s")
         self._held, self._wait_said = None, False
+        if not d.failsafe and self._takeover_t is None:
+            self._takeover_t = self.t
         if d.failsafe != self._failsafe_shown:
             self._failsafe_shown = d.failsafe
             if not d.failsafe:
@@ -803,6 +806,7 @@ class Simulator(Node):
         realtime = self.time_mode is TimeMode.REALTIME
         vals = {"mode": self.time_mode.value, "state": state, "sim_time_s": f"{self.t:.6f}", "step": str(self.sim.n),
                 "failsafe": str(self.gate.failsafe).lower(), "failsafe_reason": self.gate.failsafe_reason,
+                "takeover_sim_time_s": "" if self._takeover_t is None else f"{self._takeover_t:.6f}",
                 "rate_hz": f"{self.rate_hz:g}" if realtime else "as fast as the graph",
                 "scheduling": self.scheduling if realtime else "executor (lockstep)",
                 "callback_scheduling": self.callback_scheduling,
@@ -813,6 +817,7 @@ class Simulator(Node):
         if self.diverged:
             vals["error"] = self.diverged
         vals.update({k: str(v) for k, v in self.gate.counters.items()})
+        vals["command_gap_max_s"] = f"{self.gate.command_gap_max_s:.3f}"
         vals["overruns"] = str(self.overruns)
         if self.ack.enabled:
             vals["recorder_ack"] = ("given up" if self.ack.given_up else "waiting" if self._held is not None

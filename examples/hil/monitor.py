@@ -8,7 +8,9 @@ mode, failsafe, counters), and stops when the simulator reports ``state`` ``fini
 * the path errors of the flown odometry from the mission path (closest point; horizontal > 0 left of
   the path, vertical > 0 above; RMS and max, metres), and whether every state was finite;
 * the failsafe history from the status: when the autopilot's commands first released it, whether it
-  engaged again afterwards, and the simulator's final counters (rejected / clamped commands, overruns).
+  engaged again afterwards (from the statuses seen and from the simulator's own ``takeover_sim_time_s`` and
+  ``failsafe_steps_after_takeover``, which a monitor that matched late still gets whole), and the simulator's final
+  counters (rejected / clamped commands, overruns, the longest command gap).
 
 Usage::
 
@@ -64,7 +66,15 @@ def summarize(mission_file: Path, odom: list[tuple[float, np.ndarray]], statuses
     out["status_messages"] = len(statuses)
     out["failsafe_released_at_s"] = float(statuses[first_ok]["sim_time_s"]) if first_ok is not None else None
     out["failsafe_after_release"] = bool(first_ok is not None and any(fs[first_ok:]))
-    out["final_status"] = statuses[-1] if statuses else {}
+    fin = statuses[-1] if statuses else {}
+    # the simulator's own account, which a monitor that matched its status late (a loaded machine: seconds) and
+    # so missed the first statuses still gets whole: when the controllers took over, and every failsafe step since
+    if fin.get("takeover_sim_time_s"):
+        out["failsafe_released_at_s"] = float(fin["takeover_sim_time_s"])
+    if "failsafe_steps_after_takeover" in fin:
+        out["failsafe_steps_after_release"] = int(fin["failsafe_steps_after_takeover"])
+        out["failsafe_after_release"] = out["failsafe_after_release"] or out["failsafe_steps_after_release"] > 0
+    out["final_status"] = fin
     return out
 
 
@@ -128,7 +138,9 @@ def main(argv: list[str] | None = None) -> int:
           f" vertical RMS {summary['e_vertical_rms_m']:.3f} m (max {summary['e_vertical_max_m']:.3f})\n"
           f"  failsafe released at t = {summary['failsafe_released_at_s']} s, engaged again afterwards: "
           f"{summary['failsafe_after_release']}; simulator: {fin.get('state')}, failsafe_steps "
-          f"{fin.get('failsafe_steps')}, overruns {fin.get('overruns')}, step rate {fin.get('step_rate_hz')} Hz",
+          f"{fin.get('failsafe_steps')} ({fin.get('failsafe_steps_after_takeover')} after the takeover), overruns "
+          f"{fin.get('overruns')}, step rate {fin.get('step_rate_hz')} Hz, longest command gap "
+          f"{fin.get('command_gap_max_s')} s",
           flush=True)
     return 0 if not summary["timed_out"] else 1
 

@@ -149,7 +149,7 @@ def test_watchdog_resends_then_times_out_into_the_failsafe_with_held_commands():
     np.testing.assert_allclose(d.planes_deg, [2] * 5, atol=1e-12)
     assert d.rps == pytest.approx(1.5)
     assert g.counters["lockstep_resends"] == 1 and g.counters["lockstep_timeouts"] == 1
-    assert g.counters["failsafe_steps"] == 1
+    assert g.counters["failsafe_steps"] == 1 and g.counters["failsafe_steps_after_takeover"] == 1
 
 
 def test_first_step_times_out_on_the_startup_timeout_with_the_safe_default():
@@ -192,6 +192,25 @@ def test_realtime_failsafe_engages_on_silence_and_releases_on_fresh_commands():
     assert d.failsafe and "no valid propeller command" in d.reason and "planes held" in d.reason
     np.testing.assert_allclose(d.planes_deg, [3] * 5, atol=1e-12)
     assert g.counters["failsafe_steps"] == 3
+    # the first was the start-up wait for the controllers; the two after they had answered are counted apart
+    assert g.took_over and g.counters["failsafe_steps_after_takeover"] == 2
+    # the longest silence since the takeover: the planes' 1.0 -> 1.7 s (the propeller has not come back)
+    assert g.command_gap_max_s == pytest.approx(0.7)
+
+
+def test_startup_failsafe_steps_are_not_counted_after_the_takeover():
+    g = gate(TimeMode.REALTIME, command_timeout_s=0.5)
+    for w in (0.0, 0.05, 0.1):
+        assert g.realtime_commands(w).failsafe and not g.took_over
+    g.on_planes(PLANES, planes_rad(0, 0, 0, 0, 0), FRAME, 0, 0, 0.12)
+    g.on_propeller([PROP], [1.0], FRAME, 0, 0, 0.12)
+    assert not g.realtime_commands(0.15).failsafe and g.took_over
+    assert g.counters["failsafe_steps"] == 3 and g.counters["failsafe_steps_after_takeover"] == 0
+    assert g.command_gap_max_s == 0.0  # nothing came twice since the takeover
+    for w in (0.17, 0.22, 0.30):
+        g.on_planes(PLANES, planes_rad(0, 0, 0, 0, 0), FRAME, 0, 0, w)
+        g.on_propeller([PROP], [1.0], FRAME, 0, 0, w + 0.01)
+    assert g.command_gap_max_s == pytest.approx(0.08)
 
 
 # ------------------------------------------------------------------------------------------ recorder back-pressure

@@ -214,6 +214,14 @@ def test_realtime_rejects_clamps_and_fails_safe(bench):
     assert "no valid plane and propeller command" in st["failsafe_reason"]
     assert "planes neutral" in st["failsafe_reason"] and "propeller held" in st["failsafe_reason"]
     assert b.levels[-1] == 1  # WARN
+    # the simulator's own account of the flight: the valid commands took over before they stopped; the failsafe
+    # steps since (the 0.6 s of non-finite commands only, and now) are counted apart from any of the start-up wait,
+    # and the longest silence of valid commands is that 0.6 s one at least
+    assert 0.0 <= float(st["takeover_sim_time_s"]) < t_stop, st
+    assert 0 < int(st["failsafe_steps_after_takeover"]) <= int(st["failsafe_steps"]), st
+    assert int(st["failsafe_steps"]) - int(st["failsafe_steps_after_takeover"]) \
+        == round(float(st["takeover_sim_time_s"]) / 0.05), st  # every step before the takeover was a failsafe one
+    assert float(st["command_gap_max_s"]) >= 0.55, st
     b.wait(lambda: b.planes and np.max(np.abs(b.planes[-1])) < 1e-12, 10, "neutral planes", sim)
     assert b.t() > t_stop and np.all(np.isfinite(b.states[-1].as_vector()))
 
@@ -245,7 +253,8 @@ def test_realtime_clock_starts_once_the_controllers_answer_the_first_state(bench
     with b.lock:
         fs = [s for s in b.status if float(s.get("sim_time_s", 0)) > 0]
     assert fs and all(s["failsafe"] == "false" for s in fs), [s["failsafe_reason"] for s in fs]
-    assert all(int(s["failsafe_steps"]) == 0 for s in fs), fs[-1]
+    assert all(int(s["failsafe_steps"]) == 0 == int(s["failsafe_steps_after_takeover"]) for s in fs), fs[-1]
+    assert all(float(s["takeover_sim_time_s"]) == 0.0 for s in fs), fs[-1]  # the first step went on the answers
     sim.send_signal(signal.SIGINT)
     out, _ = sim.communicate(timeout=10)
     assert "real time: the controllers answered the first state after" in out, out

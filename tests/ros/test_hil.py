@@ -34,6 +34,13 @@ RUN_HIL = REPO / "examples" / "hil" / "run_hil.py"
 MISSION = REPO / "missions" / "canyon.yaml"
 DURATION_S = 30.0
 MAX_PATH_ERROR_M = 1.5  # the library runner stays within ~0.2 m over this stretch
+# the simulator's failsafe timeout in the real-time flights here, wall s (the example's default, a bench's, is 0.5):
+# what these tests check is that the autopilot keeps the boat out of the failsafe for the whole flight, not how
+# late a shared 2-vCPU test machine can deliver one command.  At 0.5 s the clean-clone CI failed three times in
+# about a dozen suites (a command answered at 27.2 s that arrived at 28.35 s; once 1.0-2.0 s without a command
+# 1 s after the takeover, idle, every thread of the loop at SCHED_FIFO 40); the worst gap of each flight is in the
+# simulator's status (command_gap_max_s) and in the failure message.
+COMMAND_TIMEOUT_S = 3.0
 
 
 class Listener:
@@ -98,7 +105,8 @@ def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
     summary = tmp_path / "hil.json"
     try:
         proc = subprocess.run([sys.executable, str(RUN_HIL), "--mission", str(MISSION), "--duration", str(DURATION_S),
-                               "--domain-id", str(domain_id), "--summary", str(summary)], cwd=REPO, env=ros_env(),
+                               "--command-timeout", str(COMMAND_TIMEOUT_S), "--domain-id", str(domain_id),
+                               "--summary", str(summary)], cwd=REPO, env=ros_env(),
                               capture_output=True, text=True, timeout=DURATION_S + 90)
         time.sleep(0.3)
     finally:
@@ -131,10 +139,14 @@ def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
         st[-1]
     first_ok = next(i for i, s in enumerate(st) if s["failsafe"] == "false")
     assert float(st[first_ok]["sim_time_s"]) < 3.0  # the autopilot took over within the first seconds
-    assert all(s["failsafe"] == "false" for s in st[first_ok:]), (
-        [(s["sim_time_s"], s["failsafe_reason"], s["overruns"], s["step_rate_hz"]) for s in st[first_ok:]
-         if s["failsafe"] != "false"], st[first_ok]["sim_time_s"], out[-3000:])
     last = st[-1]
+    assert all(s["failsafe"] == "false" for s in st[first_ok:]) and last["failsafe_steps_after_takeover"] == "0", (
+        [(s["sim_time_s"], s["failsafe_reason"], s["overruns"], s["step_rate_hz"]) for s in st[first_ok:]
+         if s["failsafe"] != "false"], st[first_ok]["sim_time_s"], last, out[-3000:])
+    # the simulator's own account: the takeover came at or before the first status that said so, and the longest
+    # silence of the autopilot since then stayed under the timeout
+    assert 0.0 <= float(last["takeover_sim_time_s"]) <= float(st[first_ok]["sim_time_s"]), (last, st[first_ok])
+    assert 0.0 < float(last["command_gap_max_s"]) < COMMAND_TIMEOUT_S, last
     # every failsafe step came before the takeover (start-up discovery, longer on a loaded machine), none after:
     # the status that first said "no failsafe" was sent at or after the takeover, so its step bounds them
     assert last["state"] == "finished" and int(last["failsafe_steps"]) <= int(st[first_ok]["step"])
@@ -232,8 +244,8 @@ def test_external_autopilot_on_sensors_alone_in_real_time(tmp_path):
     duration = 12.0
     summary = tmp_path / "hil.json"
     proc = subprocess.run([sys.executable, str(RUN_HIL), "--mission", str(MISSION), "--duration", str(duration),
-                           "--sensors", "tactical", "--domain-id", str(claimed_domain()), "--summary",
-                           str(summary)], cwd=REPO, env=ros_env(), capture_output=True, text=True,
+                           "--sensors", "tactical", "--command-timeout", str(COMMAND_TIMEOUT_S), "--domain-id",
+                           str(claimed_domain()), "--summary", str(summary)], cwd=REPO, env=ros_env(), capture_output=True, text=True,
                           timeout=duration + 120)
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out[-4000:]
@@ -256,7 +268,8 @@ def test_external_autopilot_on_another_network_host(tmp_path):
     duration = 15.0
     before = set(subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout.split())
     proc = subprocess.run([sys.executable, str(RUN_HIL), "--mission", str(MISSION), "--duration", str(duration),
-                           "--netns", "--domain-id", str(claimed_domain()), "--summary", str(summary)],
+                           "--netns", "--command-timeout", str(COMMAND_TIMEOUT_S), "--domain-id",
+                           str(claimed_domain()), "--summary", str(summary)],
                           cwd=REPO, env=ros_env(), capture_output=True, text=True, timeout=duration + 90)
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out[-4000:]
@@ -273,3 +286,28 @@ def test_external_autopilot_on_another_network_host(tmp_path):
     after = set(subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout.split())
     assert not {n for n in after - before if n.startswith(("bb2bench", "bb2ap"))}
     assert not math.isnan(s["e_horizontal_rms_m"])
+
+
+def test_the_monitor_judges_the_takeover_from_the_simulators_counters_when_it_matched_late():
+    """A monitor that matched the simulator's status seconds late (seen in the clean-clone CI: run_hil said OK while
+    the test, listening from the start, saw the failsafe engage 1 s after the takeover) judges from the simulator's
+    own account in its last status: the takeover time and the failsafe steps since then."""
+    sys.path.insert(0, str(RUN_HIL.parent))
+    try:
+        from monitor import summarize
+    finally:
+        sys.path.remove(str(RUN_HIL.parent))
+    ok = {"failsafe": "false", "sim_time_s": "5.000000", "state": "running"}
+    seen_late = [ok, dict(ok, sim_time_s="5.5"),
+                 dict(ok, sim_time_s="30.0", state="finished", takeover_sim_time_s="0.450000",
+                      failsafe_steps="31", failsafe_steps_after_takeover="22")]
+    s = summarize(MISSION, [], seen_late)
+    assert s["failsafe_released_at_s"] == 0.45 and s["failsafe_steps_after_release"] == 22
+    assert s["failsafe_after_release"]
+    seen_late[-1]["failsafe_steps_after_takeover"] = "0"
+    s = summarize(MISSION, [], seen_late)
+    assert not s["failsafe_after_release"] and s["failsafe_released_at_s"] == 0.45
+    # a simulator without these keys: judged from the statuses seen, as before
+    old = [dict(ok, failsafe="true", sim_time_s="0.2"), dict(ok, sim_time_s="0.5"), dict(ok, failsafe="true"), ok]
+    s = summarize(MISSION, [], old)
+    assert s["failsafe_released_at_s"] == 0.5 and s["failsafe_after_release"] and "failsafe_steps_after_release" not in s
