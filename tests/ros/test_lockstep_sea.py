@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import signal
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -36,13 +37,21 @@ class SeaListener:
         rclpy.init(context=self.ctx, domain_id=domain_id)
         self.node = rclpy.create_node("sea_test", context=self.ctx)
         self.sea: list[str] = []
+        self.finished = threading.Event()  # the simulator said state=finished (it stays up: exit_at_end false)
         self.node.create_subscription(message_class("std_msgs/msg/String"), "/bb2/sea",
                                       lambda m: self.sea.append(m.data), qos_profile("/bb2/sea"))
+        self.node.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
+                                      self._on_status, qos_profile("/bb2/status"))
         self.executor = SingleThreadedExecutor(context=self.ctx)
         self.executor.add_node(self.node)
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
+
+    def _on_status(self, msg) -> None:
+        if any(kv.key == "state" and kv.value == "finished" for st in msg.status if st.name == "bb2/simulator"
+               for kv in st.values):
+            self.finished.set()
 
     def _spin(self) -> None:
         while not self._stop.is_set():
@@ -71,7 +80,9 @@ def _library_trajectory(mission_file: Path, environment=None, commands: list | N
 
 def _run_graph(tmp_path: Path, mission: Path, domain_id: int, extra: str = "") -> tuple[np.ndarray, list[str]]:
     """Fly ``mission`` through the five nodes in lockstep; the simulator's trajectory and the /bb2/sea it
-    latched (read by a listener that joins while the graph runs)."""
+    latched (read by a listener that joins while the graph runs).  The simulator stays up at the end
+    (``exit_at_end`` false) until the listener has the sea: a lockstep flight of a loaded machine once ended
+    before the late listener had matched the simulator (clean-clone CI: no /bb2/sea received)."""
     csv_file = tmp_path / "traj.csv"
     common = ["--params-file", str(PARAMS), "-p", f"mission_file:={mission}", "-p", "status_period_s:=0.5"]
     procs = {m: spawn_node(m, domain_id, *common) for m in CONTROLLERS}
@@ -80,12 +91,17 @@ def _run_graph(tmp_path: Path, mission: Path, domain_id: int, extra: str = "") -
     try:
         overrides = tmp_path / "overrides.yaml"
         overrides.write_text(f"simulator:\n  ros__parameters:\n    trajectory_csv: {csv_file}\n"
-                             f"    exit_at_end: true\n    min_state_subscribers: 2\n"
+                             f"    exit_at_end: false\n    min_state_subscribers: 2\n"
                              f"    lockstep_timeout_s: 20.0\n{extra}")   # a loaded machine never steps on held
         sim = spawn_node("bb2_ros.simulator", domain_id, *common, "--params-file", str(overrides))
         listener = SeaListener(domain_id)   # joins late (the sea was published at start): transient local
-        out, _ = sim.communicate(timeout=150)
-        assert sim.returncode == 0, out
+        deadline = time.monotonic() + 150
+        while sim.poll() is None and time.monotonic() < deadline and not (listener.finished.is_set() and listener.sea):
+            time.sleep(0.1)
+        assert sim.poll() is None, sim.communicate()[0]  # up at the end, until told to stop
+        sim.send_signal(signal.SIGINT)
+        out, _ = sim.communicate(timeout=30)
+        assert listener.finished.is_set() and sim.returncode == 0, out
         assert "lockstep timeout" not in out and "no answer to step" not in out, out
         for m, p in procs.items():
             assert p.poll() is None, f"{m} died: {p.communicate()[0]}"
