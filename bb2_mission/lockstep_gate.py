@@ -237,6 +237,7 @@ class LockstepGate:
     took_over: bool = False                  #: a step went on valid commands (the controllers took over)
     command_gap_max_s: float = 0.0           #: since the takeover: the longest wall gap between two valid plane
     #: (or two valid propeller) commands -- how close a real-time autopilot came to ``command_timeout_s``
+    _stall_credited: tuple[bool, bool] = (False, False)  # real time: planes', propeller's last command got a stall
     _ans_planes: np.ndarray | None = None    # lockstep: answers to the step being awaited
     _ans_rps: float | None = None
     _first_answer_wall: float | None = None
@@ -260,6 +261,7 @@ class LockstepGate:
         if v.accepted:
             self._gap(wall - self.planes_wall)
             self.planes_deg, self.planes_wall = v.value, wall
+            self._stall_credited = (False, self._stall_credited[1])
             if self.mode is TimeMode.LOCKSTEP:
                 self._ans_planes = v.value
         return v
@@ -271,6 +273,7 @@ class LockstepGate:
         if v.accepted:
             self._gap(wall - self.rps_wall)
             self.rps, self.rps_wall = v.value, wall
+            self._stall_credited = (self._stall_credited[0], False)
             if self.mode is TimeMode.LOCKSTEP:
                 self._ans_rps = v.value
         return v
@@ -369,6 +372,24 @@ class LockstepGate:
                + ("planes neutral" if not planes_ok else "planes held") + ", propeller "
                + ("held" if self.rps is not None else f"nominal {self.nominal_rps:.4g} rps"))
         return self._decide(planes, rps, True, why)
+
+    def simulator_stalled(self, since: float, until: float) -> None:
+        """Real time: the stepping thread itself missed its deadlines from ``since`` to ``until`` (wall s; the process
+        stopped or starved): no state went out, so the controllers had nothing to answer.  A command still fresh at
+        ``since`` gets the stall's time back, so the failsafe counts the controllers' silence, not the simulator's
+        (once per command: a controller that fell silent for good is still caught one stall later)."""
+        d = until - since
+        if not d > 0:
+            return
+        limit = self.timings.command_timeout_s
+        credited = list(self._stall_credited)
+        if self.planes_deg is not None and not credited[0] and since - self.planes_wall <= limit:
+            self.planes_wall += d
+            credited[0] = True
+        if self.rps is not None and not credited[1] and since - self.rps_wall <= limit:
+            self.rps_wall += d
+            credited[1] = True
+        self._stall_credited = (credited[0], credited[1])
 
     # -- both
     def _decide(self, planes: np.ndarray, rps: float, failsafe: bool, why: str) -> StepDecision:

@@ -58,7 +58,10 @@ other one is read-only (fixed at start-up; the set is refused):
                        (a warning; the graph steps on and the bag will have a gap) until it acknowledges again.
 ``command_timeout_s``  real time: a command older than this (wall time since it arrived), or none at all,
                        engages the failsafe: planes commanded to neutral (0 rad), propeller held at the last
-                       valid command (the mission's nominal speed command if none ever arrived).
+                       valid command (the mission's nominal speed command if none ever arrived).  Time the
+                       stepping thread itself lost (an overrun: the process stopped or starved, no state went out)
+                       is given back to a command that was fresh when the stall began, once per command: the
+                       failsafe counts the controllers' silence, not the simulator's.
 ``max_command_age_s``  a command whose stamp is older than sim time minus this is rejected (stale).
 ``duration_s``         stop stepping at this sim time (< 0: the mission's duration, none = run on).
 ``exit_at_end``        exit 0 when the duration is reached (else stay up, status ``finished``); a diverged
@@ -686,6 +689,7 @@ class Simulator(Node):
         now = time.monotonic()
         if now - self._next_tick > period:
             self.overruns += 1
+            self.gate.simulator_stalled(self._next_tick, now)  # its own stall: not the controllers' silence
             self._next_tick = now
         self._next_tick += period
         decision = self.gate.realtime_commands(now)

@@ -263,3 +263,29 @@ def test_real_time_first_commands_start_the_clock_resending_the_first_state_mean
     late.state_sent(10.0)
     assert late.first_commands(11.99) is WatchdogAction.RESEND   # none in time: the clock starts on the failsafe
     assert late.first_commands(12.0) is WatchdogAction.STEP and not late.has_commands
+
+
+def test_the_simulators_own_stall_is_given_back_to_fresh_commands_once():
+    g = gate(TimeMode.REALTIME, command_timeout_s=0.5)
+    g.on_planes(PLANES, planes_rad(1, 1, 1, 1, 1), FRAME, 0, 0, 1.0)
+    g.on_propeller([PROP], [1.0], FRAME, 0, 0, 1.01)
+    assert not g.realtime_commands(1.05).failsafe
+    g.simulator_stalled(1.1, 6.1)                         # the stepping thread stopped 5 s (SIGSTOP) after 1.1 s
+    d = g.realtime_commands(6.1)                          # the controllers had nothing to answer meanwhile
+    assert not d.failsafe and g.counters["failsafe_steps_after_takeover"] == 0
+    assert g.realtime_commands(6.45).failsafe is False
+    assert g.realtime_commands(6.55).failsafe             # then their own silence counts again
+    # once per command: a second stall with no command since gives nothing back
+    g.simulator_stalled(6.6, 9.0)
+    assert g.realtime_commands(9.0).failsafe
+    # a command that was already stale when a stall began gets nothing either
+    h = gate(TimeMode.REALTIME, command_timeout_s=0.5)
+    h.on_planes(PLANES, planes_rad(1, 1, 1, 1, 1), FRAME, 0, 0, 1.0)
+    h.on_propeller([PROP], [1.0], FRAME, 0, 0, 1.0)
+    h.simulator_stalled(1.6, 3.0)
+    assert h.realtime_commands(3.0).failsafe
+    # a fresh command after a credited stall can be credited again
+    g.on_planes(PLANES, planes_rad(1, 1, 1, 1, 1), FRAME, 0, 0, 9.1)
+    g.on_propeller([PROP], [1.0], FRAME, 0, 0, 9.1)
+    g.simulator_stalled(9.2, 12.0)
+    assert not g.realtime_commands(12.0).failsafe

@@ -234,6 +234,41 @@ def test_realtime_rejects_clamps_and_fails_safe(bench):
     assert out.count("rejected non-finite plane command") < int(st["rejected_nonfinite"])  # throttled
 
 
+def test_realtime_a_stall_of_the_simulator_itself_is_not_the_controllers_silence(bench):
+    """The simulator process stopped 1.5 s (SIGSTOP; three times command_timeout_s): no state went out, so the
+    bench (an autopilot answering each new state) had nothing to answer.  After the SIGCONT the stepping thread counts
+    the stall as an overrun and gives the stall's time back to the last commands: no failsafe step, and the stall is
+    not in the longest command gap.  (Before, the first tick after the resume found the last command 1.5 s old and
+    stepped in the failsafe, saying 'no valid plane and propeller command'.)"""
+    b, start = bench
+    sim = start(time_mode="realtime", rate_hz=40, command_timeout_s=0.5, status_period_s=0.2)
+    b.wait(lambda: b.states and b.node.count_subscribers("/bb2/planes/cmd") > 0, 20, "simulator up", sim)
+    omega = 2 * math.pi * 1.2
+    b.stream(1.0, planes_rad=np.zeros(5), omega=omega)
+    b.wait(lambda: b.last_status().get("failsafe") == "false", 5, "failsafe released by valid commands", sim)
+    b.stream(0.5, planes_rad=np.zeros(5), omega=omega)
+    before = b.last_status()
+    n_status = len(b.status)
+    os.kill(sim.pid, signal.SIGSTOP)
+    try:
+        time.sleep(1.5)
+    finally:
+        os.kill(sim.pid, signal.SIGCONT)
+    time.sleep(0.1)  # the stepping thread resumes first; the bench answers the states that come from now on
+    t_resume = b.t()
+    b.stream(1.0, planes_rad=np.zeros(5), omega=omega)
+    b.wait(lambda: b.t() > t_resume + 0.5 and len(b.status) > n_status + 3, 10, "stepping on after the resume", sim)
+    st = b.last_status()
+    with b.lock:
+        after = b.status[n_status:]
+    assert int(st["overruns"]) > int(before["overruns"]), (before, st)
+    assert st["failsafe_steps_after_takeover"] == before["failsafe_steps_after_takeover"], (before, st)
+    assert all(s["failsafe"] == "false" for s in after), [s["failsafe_reason"] for s in after]
+    assert float(st["command_gap_max_s"]) < 1.0, st  # the bench's own gaps only, not the 1.5 s stall
+    sim.send_signal(signal.SIGINT)
+    sim.communicate(timeout=10)
+
+
 def test_realtime_clock_starts_once_the_controllers_answer_the_first_state(bench):
     """``wait_for_commands`` (bb2-launch sets it in real time): the state at t = 0 is re-sent, and the clock stands
     still, until valid commands answer it; then the run steps on the wall clock without a failsafe step."""
