@@ -65,6 +65,7 @@ class GraphMonitor:
                                       start_parameter_services=False, enable_rosout=False)
         self._lock = threading.Lock()
         self.sim_time_s: float | None = None
+        self._status_time_wall: float | None = None  # wall s when a status's sim time was last taken over /clock's
         self.progress: float | None = None
         self.status_end = False  # the simulator's status says the mission duration is over
         self.sim_error: str | None = None  # the simulator's status says it stopped on an error
@@ -138,7 +139,11 @@ class GraphMonitor:
         stamp = self._deserialize(data, self._clock_type).clock
         t = stamp.sec + stamp.nanosec * 1e-9
         with self._lock:
-            self.sim_time_s = t
+            # a /clock sent before a status whose newer sim time was taken is old news (a restarted simulator's
+            # lower times come after it and are taken)
+            if not (self._status_time_wall is not None and wall < self._status_time_wall
+                    and self.sim_time_s is not None and t < self.sim_time_s):
+                self.sim_time_s = t
             if self._first is None:
                 self._first = (wall, t)
             elif self._first_step is None and t != self._first[1]:
@@ -166,7 +171,7 @@ class GraphMonitor:
                 t = float(vals["sim_time_s"])
                 with self._lock:
                     if self.sim_time_s is None or t > self.sim_time_s:
-                        self.sim_time_s = t
+                        self.sim_time_s, self._status_time_wall = t, time.time()
             except (KeyError, ValueError):
                 pass
             state = vals.get("state", "").lower()

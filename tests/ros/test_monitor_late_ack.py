@@ -131,6 +131,18 @@ def test_the_launch_monitor_takes_the_sim_time_of_the_simulators_status_when_no_
         pub.publish(status("finished", 3.0))  # an older time (a status late on its way) never takes it back
         time.sleep(0.5)
         assert monitor.sim_time_s == 20.0
+        # nor does a /clock sample the monitor polls after the status but which was sent before it (its DDS source
+        # timestamp older); a lower /clock sent after the status (a restarted simulator) is taken
+        from rclpy.serialization import serialize_message
+
+        def clock(t: float) -> bytes:
+            return serialize_message(message_class("rosgraph_msgs/msg/Clock")(clock=cv.stamp(t)))
+        monitor._on_clock(clock(19.95), time.time() - 1.0)
+        assert monitor.sim_time_s == 20.0
+        monitor._on_clock(clock(20.05), time.time() - 1.0)   # newer sim time: taken whenever it was sent
+        assert monitor.sim_time_s == 20.05
+        monitor._on_clock(clock(0.5), time.time())
+        assert monitor.sim_time_s == 0.5
     finally:
         monitor.close()
         node.destroy_node()
