@@ -16,6 +16,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -148,6 +149,10 @@ def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
     # silence of the autopilot since then stayed under the timeout
     assert 0.0 <= float(last["takeover_sim_time_s"]) <= float(st[first_ok]["sim_time_s"]), (last, st[first_ok])
     assert 0.0 < float(last["command_gap_max_s"]) < COMMAND_TIMEOUT_S, last
+    if float(last["command_gap_max_s"]) > 0.5:  # past the bench's own timeout: said in the suite's warnings summary
+        warnings.warn(f"HIL real-time flight: the longest command gap was {last['command_gap_max_s']} s (the bench "
+                      f"default command_timeout_s is 0.5 s); overruns {last['overruns']}, scheduling "
+                      f"{last['scheduling']}, callbacks {last['callback_scheduling']}", stacklevel=1)
     # every failsafe step came before the takeover (start-up discovery, longer on a loaded machine), none after:
     # the status that first said "no failsafe" was sent at or after the takeover, so its step bounds them
     assert last["state"] == "finished" and int(last["failsafe_steps"]) <= int(st[first_ok]["step"])
