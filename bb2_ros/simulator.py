@@ -29,7 +29,7 @@ other one is read-only (fixed at start-up; the set is refused):
 ``realtime_priority``  real time: SCHED_FIFO priority (1-99, default 50) of the stepping thread, so the period
                        holds on a loaded machine (HIL); 0 = normal scheduling.  Refused by the OS (no
                        CAP_SYS_NICE / rtprio limit): one warning, normal scheduling.  A thread that overruns every
-                       step for a second gives the priority up (it would starve its core).
+                       step for a second of wall time gives the priority up (it would starve its core).
 ``callback_priority``  real time: SCHED_FIFO priority (1-99) of the process's executor and middleware threads,
                        which receive the commands, so a command is not queued behind other processes (a HIL
                        bench's autopilot answers in time, but a normally scheduled reception beside a busy
@@ -157,6 +157,7 @@ STATUS_DELIVERY_TIMEOUT_S = 5.0  # a finished run waits at most this long (wall)
 TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress",  # progress: end_at_progress
              "/bb2/recorder/ack")  # recorder_ack_window
 TWO_PI = 2.0 * math.pi
+RT_GIVE_UP_S = 1.0  # real time: a SCHED_FIFO stepping thread late on every tick for this long (wall s) drops it
 RECORDER_WAIT_WARN_S = 1.0  # a hold for the recorder longer than this (wall s) is said, once per hold
 
 
@@ -626,7 +627,8 @@ class Simulator(Node):
                                                "stepping with normal scheduling")
         if self.hold_cpu_dma_latency:
             self._hold_cpu_dma_latency()
-        late = 0  # consecutive ticks with no time left before the next deadline
+        late = 0  # consecutive ticks with no time left before the next deadline ...
+        late_since = 0.0  # ... since this wall time (the first of them)
         while not self._rt_stop.is_set():
             period = 1.0 / self.rate_hz  # live parameter: a new rate from the next deadline on
             if not self.started:  # _start sets the first deadline
@@ -640,22 +642,27 @@ class Simulator(Node):
                 if self._awaiting_commands:
                     self._rt_stop.wait(0.005)
                     continue
-            delay = self._next_tick - time.monotonic()
+            now = time.monotonic()
+            delay = self._next_tick - now
             if delay > 0:
                 time.sleep(delay)
                 late = 0
             else:
                 late += 1
-                if late == max(1, round(self.rate_hz)) and self.realtime_priority > 0:
-                    # a real-time thread that never sleeps would starve its core: give the priority up
+                if late == 1:
+                    late_since = now
+                elif (late > 1 and now - late_since >= RT_GIVE_UP_S and self.realtime_priority > 0
+                      and not self.scheduling.startswith("normal")):
+                    # a real-time thread that never sleeps would starve its core: give the priority up after a
+                    # second of wall time (not of steps: at a rate far beyond the step's cost that was seconds)
                     try:
                         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
                         self.scheduling = "normal (SCHED_FIFO given up: overruns)"
                     except (OSError, AttributeError):
                         pass
-                    self.warn.warn("rt_drop", f"{late} steps in a row (a second's worth at {self.rate_hz:g} Hz) "
-                                              "left no time before the next deadline: stepping thread back to "
-                                              "normal scheduling")
+                    self.warn.warn("rt_drop", f"{late} steps in a row over {now - late_since:.2f} s left no time "
+                                              f"before the next deadline (at {self.rate_hz:g} Hz): stepping thread "
+                                              "back to normal scheduling")
             with self._lock:
                 if self._rt_stop.is_set():
                     break
