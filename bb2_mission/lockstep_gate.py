@@ -237,7 +237,8 @@ class LockstepGate:
     took_over: bool = False                  #: a step went on valid commands (the controllers took over)
     command_gap_max_s: float = 0.0           #: since the takeover: the longest wall gap between two valid plane
     #: (or two valid propeller) commands -- how close a real-time autopilot came to ``command_timeout_s``
-    _stall_credited: tuple[bool, bool] = (False, False)  # real time: planes', propeller's last command got a stall
+    _planes_stall_credited: bool = False     # real time: the last valid planes / propeller command was given a stall
+    _rps_stall_credited: bool = False        # back (simulator_stalled)
     _ans_planes: np.ndarray | None = None    # lockstep: answers to the step being awaited
     _ans_rps: float | None = None
     _first_answer_wall: float | None = None
@@ -260,8 +261,7 @@ class LockstepGate:
         self.count(v.counter)
         if v.accepted:
             self._gap(wall - self.planes_wall)
-            self.planes_deg, self.planes_wall = v.value, wall
-            self._stall_credited = (False, self._stall_credited[1])
+            self.planes_deg, self.planes_wall, self._planes_stall_credited = v.value, wall, False
             if self.mode is TimeMode.LOCKSTEP:
                 self._ans_planes = v.value
         return v
@@ -272,8 +272,7 @@ class LockstepGate:
         self.count(v.counter)
         if v.accepted:
             self._gap(wall - self.rps_wall)
-            self.rps, self.rps_wall = v.value, wall
-            self._stall_credited = (self._stall_credited[0], False)
+            self.rps, self.rps_wall, self._rps_stall_credited = v.value, wall, False
             if self.mode is TimeMode.LOCKSTEP:
                 self._ans_rps = v.value
         return v
@@ -382,14 +381,12 @@ class LockstepGate:
         if not d > 0:
             return
         limit = self.timings.command_timeout_s
-        credited = list(self._stall_credited)
-        if self.planes_deg is not None and not credited[0] and since - self.planes_wall <= limit:
+        if self.planes_deg is not None and not self._planes_stall_credited and since - self.planes_wall <= limit:
             self.planes_wall += d
-            credited[0] = True
-        if self.rps is not None and not credited[1] and since - self.rps_wall <= limit:
+            self._planes_stall_credited = True
+        if self.rps is not None and not self._rps_stall_credited and since - self.rps_wall <= limit:
             self.rps_wall += d
-            credited[1] = True
-        self._stall_credited = (credited[0], credited[1])
+            self._rps_stall_credited = True
 
     # -- both
     def _decide(self, planes: np.ndarray, rps: float, failsafe: bool, why: str) -> StepDecision:

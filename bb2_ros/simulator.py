@@ -651,7 +651,7 @@ class Simulator(Node):
                 late += 1
                 if late == 1:
                     late_since = now
-                elif (late > 1 and now - late_since >= RT_GIVE_UP_S and self.realtime_priority > 0
+                elif (now - late_since >= RT_GIVE_UP_S and self.realtime_priority > 0
                       and not self.scheduling.startswith("normal")):
                     # a real-time thread that never sleeps would starve its core: give the priority up after a
                     # second of wall time (not of steps: at a rate far beyond the step's cost that was seconds)

@@ -355,7 +355,7 @@ def test_realtime_thread_gives_up_fifo_when_it_overruns_every_step(bench):
     st = b.last_status()
     assert int(st["overruns"]) >= 100, st
     with b.lock:
-        walls = [(w, s) for w, s in zip(b.status_walls, b.status)]
+        walls = list(zip(b.status_walls, b.status))
     late = [w for w, s in walls if s.get("scheduling") == "SCHED_FIFO 1" and int(s.get("overruns", 0)) > 0]
     given = next(w for w, s in walls if s.get("scheduling", "").startswith("normal (SCHED_FIFO given up"))
     # late from the first status on (statuses every 0.2 s), given up after a second of it: not before, nor seconds on
