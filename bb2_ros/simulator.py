@@ -691,9 +691,10 @@ class Simulator(Node):
         """Real-time step (the stepping thread, at its deadline ``self._next_tick``)."""
         if self.finished and not self.done:
             self._end_when_recorded()  # bounded wait for the statuses to reach the recorder
-        if not self._stepping():
-            return
         now = time.monotonic()
+        if not self._stepping():  # finished or diverged: poll the end at the step rate, never spin
+            self._next_tick = now + period
+            return
         if now - self._next_tick > period:
             self.overruns += 1
             self.gate.simulator_stalled(self._next_tick, now)  # its own stall: not the controllers' silence

@@ -501,3 +501,29 @@ def test_malformed_params_or_mission_exit_nonzero(tmp_path, case):
     out, _ = p.communicate(timeout=30)
     assert p.returncode == 2, out
     assert "simulator: error:" in out and expect in out, out
+
+
+def _cpu_s(pid: int) -> float:
+    """User + system CPU time (s) of process ``pid`` so far, every thread (/proc/PID/stat)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def test_realtime_loop_idles_once_the_mission_is_over(bench):
+    """A real-time run that finished (the simulator stays up: ``exit_at_end`` false; a diverged one takes the same
+    path) must not spin: its stepping thread polls at the step rate, keeps its SCHED_FIFO priority (nothing to give up) and costs nearly
+    no CPU.  (It used to busy-loop at its real-time priority, its deadline no longer advancing: a core held at
+    SCHED_FIFO 50 for a second after every real-time mission, then, given up, half a core until the process ended.)"""
+    b, start = bench
+    sim = start(time_mode="realtime", rate_hz=100.0, duration_s=1.0, status_period_s=0.2, exit_at_end=False)
+    b.wait(lambda: b.last_status().get("state") == "finished", 60, "the mission's end", sim)
+    time.sleep(0.5)  # the end's own work (statuses, the recorder's acknowledgement: none here) done
+    cpu0, wall0 = _cpu_s(sim.pid), time.monotonic()
+    time.sleep(2.0)
+    cpu, wall = _cpu_s(sim.pid) - cpu0, time.monotonic() - wall0
+    st = b.last_status()
+    assert sim.poll() is None, "the simulator must stay up (exit_at_end false)"
+    # a busy loop costs a whole core at SCHED_FIFO (even beside CPU hogs), half of one at normal priority beside two
+    assert cpu < 0.25 * wall, (cpu, wall, st)
+    assert not st.get("scheduling", "").startswith("normal (SCHED_FIFO given up"), st
+    assert int(st["overruns"]) == 0, st
