@@ -144,6 +144,7 @@ from bb2_msgs_py.contract import (FRAME_BASE_LINK, FRAME_ODOM, PLANE_JOINTS, PRO
 from bb2_sim.integrator import NonFiniteStateError
 from bb2_sim.state import VehicleState
 
+from bb2_ros import heap
 from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, build_piece, check_remaps,
                                  contract_publisher, declare, declare_callback_priority, declare_lockstep_priority,
                                  mission_only, node_options, require_choice, require_positive, run_node)
@@ -831,6 +832,7 @@ class Simulator(Node):
         vals.update({k: str(v) for k, v in self.gate.counters.items()})
         vals["command_gap_max_s"] = f"{self.gate.command_gap_max_s:.3f}"
         vals["overruns"] = str(self.overruns)
+        vals.update(heap.PAUSES.status_values())
         if self.ack.enabled:
             vals["recorder_ack"] = ("given up" if self.ack.given_up else "waiting" if self._held is not None
                                     else "ok")

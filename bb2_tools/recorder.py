@@ -63,6 +63,7 @@ from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, GLOBAL_TOPICS, SCENE_TO
                                   select_topics)
 from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
+from bb2_ros import heap
 from bb2_ros.node_common import node_frame, restore_signals, stop_signals, take_all, time_msg
 
 ODOM_TOPIC = "/bb2/odom"
@@ -647,6 +648,7 @@ def _main(argv: Sequence[str] | None) -> int:
                    queue_depth=int(depth), use_sim_time=use_sim_time, node=node, boats=boats)
     print(f"bb2-record: recording {len(specs)} topics" + (f" of each of {len(boats)} boats" if boats else "")
           + f" into {out}", flush=True)
+    heap.settle()  # no 30-45 ms collector pause while recording (the simulator may wait for its acks)
     code = 0
     try:
         while not stop.is_set() and rclpy.ok():

@@ -73,7 +73,8 @@ class Probe:
         from bb2_msgs_py.contract import message_class, qos_profile
 
         self.cv, self._deserialize = cv, deserialize_message
-        self.state_src: dict[int, int] = {}
+        self.state_src: dict[int, int] = {}         # stamp -> source time of its first publication
+        self.state_sends: dict[int, list[int]] = {}  # ... of every one (t = 0 is re-sent until the clock starts)
         self.cmd_src: dict[int, int] = {}
         self.hop_src: dict[str, dict[int, int]] = {"/bb2/guidance/rate_cmd": {}, "/bb2/autopilot/vh_cmd": {}}
         self.context = Context()
@@ -108,6 +109,7 @@ class Probe:
     def _on_state(self, msg, info) -> None:
         t_ns = self.cv.seconds_to_ns(self.cv.state_native_from_message(msg).t)
         self.state_src.setdefault(t_ns, int(info["source_timestamp"]))
+        self.state_sends.setdefault(t_ns, []).append(int(info["source_timestamp"]))
 
     def _on_cmd(self, msg, info) -> None:
         self.cmd_src.setdefault(self.cv.stamp_to_ns(msg.header.stamp), int(info["source_timestamp"]))
@@ -168,6 +170,15 @@ def last_simulator_status(reader) -> dict[str, str]:
                 vals = {kv.key: kv.value for kv in st.values}
                 if int(vals.get("step", -1)) >= int(last.get("step", -1)):
                     last = vals
+    return last
+
+
+def last_statuses(reader) -> dict[str, dict[str, str]]:
+    """Each node's last status in the bag (by status name)."""
+    last: dict[str, dict[str, str]] = {}
+    for _topic, _t, msg in reader.messages("/bb2/status"):
+        for st in msg.status:
+            last[st.name] = {kv.key: kv.value for kv in st.values}
     return last
 
 
@@ -277,14 +288,19 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
         return {}
     figures = {}
     stamps = sorted(probe.state_src)
-    pubs = np.array([probe.state_src[s] for s in stamps], dtype=np.int64)
+    # the periods from each state's last publication: the clock starts once the controllers answered the state of
+    # t = 0 (wait_for_commands), which is re-sent meanwhile (its first publication to the next state is start-up)
+    pubs = np.array([max(probe.state_sends[s]) for s in stamps], dtype=np.int64)
     period_ms = np.diff(pubs) * 1e-6
     dev_ms = np.abs(period_ms - 1e3 / rate)
     print(f"  step period (DDS source timestamps of /bb2/state_native): {len(period_ms)} periods, mean "
           f"{period_ms.mean():.3f} ms; |period - {1e3 / rate:g} ms| p50 {np.percentile(dev_ms, 50):.3f} ms, "
           f"p99 {np.percentile(dev_ms, 99):.3f} ms, max {dev_ms.max():.3f} ms   [goal p99 <= 1 ms]")
     figures["jitter_p99_ms"] = float(np.percentile(dev_ms, 99))
-    lat_ms = np.array([(probe.cmd_src[s] - probe.state_src[s]) * 1e-6 for s in stamps if s in probe.cmd_src])
+    # the latency from the publication the answer followed (the last before it, for a re-sent state)
+    lat_ms = np.array([(probe.cmd_src[s] - max([p for p in probe.state_sends[s] if p <= probe.cmd_src[s]]
+                                               or probe.state_sends[s][:1])) * 1e-6
+                       for s in stamps if s in probe.cmd_src])
     answered = [s for s in stamps if s in probe.cmd_src]
     if answered:
         before = sum(1 for s in stamps if s < answered[0])
@@ -312,6 +328,16 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     print(f"  simulator status: overruns {status.get('overruns')}, failsafe steps {status.get('failsafe_steps')}, "
           f"measured step rate {status.get('step_rate_hz')} Hz, stepping thread {status.get('scheduling')}, "
           f"cpu_dma_latency {status.get('cpu_dma_latency')}")
+    figures["overruns"] = float(status.get("overruns", "nan"))
+    figures["jitter_max_ms"] = float(dev_ms.max())
+    # the garbage collector's pauses stop every thread of a process (bb2_ros.heap): each process's, from its
+    # nodes' last statuses (composed nodes share one collector: the same figures under each name)
+    gcs = {name.removeprefix("bb2/"): st for name, st in last_statuses(reader).items() if "gc_collections" in st}
+    print("  garbage collections since spinning (count, longest pause; heap frozen at start): " + "; ".join(
+        f"{n} {st['gc_collections']}, {st['gc_pause_max_ms']} ms ({st['gc_frozen_objects']} objects)"
+        for n, st in sorted(gcs.items())))
+    pauses = [float(st["gc_pause_max_ms"]) for st in gcs.values() if st.get("gc_pause_max_ms")]
+    figures["gc_pause_max_ms"] = max(pauses) if pauses else None
     return figures
 
 
@@ -365,6 +391,9 @@ def main() -> int:
                     rt = realtime(args, tmp, layout)
                     fig["real time 100 Hz: latency p99 (ms)"] = rt.get("latency_p99_ms")
                     fig["real time 100 Hz: jitter p99 (ms)"] = rt.get("jitter_p99_ms")
+                    fig["real time 100 Hz: jitter max (ms)"] = rt.get("jitter_max_ms")
+                    fig["real time 100 Hz: overruns"] = rt.get("overruns")
+                    fig["real time: longest GC pause (ms)"] = rt.get("gc_pause_max_ms")
                 for k, v in fig.items():
                     rows[layout].setdefault(k, []).append(v)
     goals = {"controllers": {"lost messages": "0"},

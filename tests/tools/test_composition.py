@@ -82,6 +82,13 @@ def test_bb2_launch_refuses_a_restart_of_a_composed_simulator(tmp_path):
 
 
 # ------------------------------------------------------------------------------------ the graph, composed
+def _last_statuses(bag: Path) -> dict[str, dict[str, str]]:
+    from bb2_tools.bagfile import BagReader
+
+    return {st.name: {kv.key: kv.value for kv in st.values}
+            for _t, _lt, msg in BagReader(bag).messages("/bb2/status") for st in msg.status}
+
+
 def _status_names(bag: Path) -> set[str]:
     from bb2_tools.bagfile import BagReader
 
@@ -137,6 +144,11 @@ def test_the_graph_composed_or_not_equals_the_library_runner(tmp_path, canyon_20
     assert np.ptp(ref[:, 1]) > 50.0  # the vehicle really travelled
     assert {"bb2/simulator", "bb2/planner", "bb2/path_following", "bb2/l1_autopilot", "bb2/mixer"} \
         <= _status_names(out), _status_names(out)
+    # every node process settled its start-up heap before spinning (bb2_ros.heap): frozen, and the collections
+    # since then measured (composed nodes share one collector and say the same)
+    for name, st in _last_statuses(out).items():
+        assert int(st["gc_frozen_objects"]) > 50_000 and int(st["gc_collections"]) >= 0 \
+            and float(st["gc_pause_max_ms"]) >= 0.0, (name, st)
     assert "recording complete: no gaps" in r.stderr, r.stderr[-3000:]
 
 
