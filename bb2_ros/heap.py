@@ -2,8 +2,8 @@
 
 CPython's cyclic garbage collector stops every thread of the process while it runs, and a full (oldest
 generation) collection walks every container object alive: in a node process, after numpy, scipy, trimesh, rclpy
-and the message classes are imported and the mission is built, that is a few hundred thousand objects and
-30-45 ms a collection on this project's machines, so one full collection in a real-time run at 100 Hz is an
+and the message classes are imported and the mission is built, that is about 100,000 objects and 30-45 ms a
+collection on this project's machines, so one full collection in a real-time run at 100 Hz is an
 overrun of the stepping thread (three or four periods without a state).  Nearly all of those objects live as
 long as the process.
 
@@ -38,11 +38,6 @@ class GcPauses:
         if not self.started:
             self.started = True
             gc.callbacks.append(self._on_gc)
-
-    def stop(self) -> None:
-        if self.started:
-            gc.callbacks.remove(self._on_gc)
-            self.started = False
 
     def _on_gc(self, phase: str, _info: dict) -> None:
         # called by the collector itself, with the interpreter lock held: collections never overlap

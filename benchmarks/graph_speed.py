@@ -299,10 +299,10 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
           f"{period_ms.mean():.3f} ms; |period - {1e3 / rate:g} ms| p50 {np.percentile(dev_ms, 50):.3f} ms, "
           f"p99 {np.percentile(dev_ms, 99):.3f} ms, max {dev_ms.max():.3f} ms   [goal p99 <= 1 ms]")
     figures["jitter_p99_ms"] = float(np.percentile(dev_ms, 99))
-    # the latency from the publication the answer followed (the last before it, for a re-sent state)
-    lat_ms = np.array([(probe.cmd_src[s] - max([p for p in probe.state_sends[s] if p <= probe.cmd_src[s]]
-                                               or probe.state_sends[s][:1])) * 1e-6
-                       for s in stamps if s in probe.cmd_src])
+    # each state's publication that its answer followed (the last before the answer, for the re-sent state of t = 0)
+    state_src = {s: max([p for p in probe.state_sends[s] if p <= probe.cmd_src[s]] or probe.state_sends[s][:1])
+                 if s in probe.cmd_src else probe.state_src[s] for s in stamps}
+    lat_ms = np.array([(probe.cmd_src[s] - state_src[s]) * 1e-6 for s in stamps if s in probe.cmd_src])
     answered = [s for s in stamps if s in probe.cmd_src]
     if answered:
         before = sum(1 for s in stamps if s < answered[0])
@@ -317,7 +317,7 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
               f"[goal p99 <= {1 if layout == 'composed' else 3} ms]")
         figures["latency_p99_ms"] = float(np.percentile(lat_ms, 99))
         # where the loop's time goes: each node's answer, from its input's source time to its output's
-        chain = [("/bb2/state_native", probe.state_src),
+        chain = [("/bb2/state_native", state_src),
                  *((name, probe.hop_src[name]) for name in ("/bb2/guidance/rate_cmd", "/bb2/autopilot/vh_cmd")),
                  ("/bb2/planes/cmd", probe.cmd_src)]
         for (a, src_a), (b, src_b) in zip(chain, chain[1:]):
