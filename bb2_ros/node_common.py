@@ -328,8 +328,9 @@ def _priority_check(name: str):
 def declare_callback_priority(shell, *, applies: bool = True) -> int:
     """Declare ``callback_priority`` on a controller's shell (``shell.callback_priority``; :func:`run_nodes` applies
     the largest of a process's nodes' to the process, :func:`set_callback_priority`, and sets
-    ``shell.callback_scheduling``, what its status says).  ``applies`` False (the simulator in lockstep, where its
-    ``lockstep_priority`` decides): declared, but 0 for the process, and ``callback_scheduling`` left as it is."""
+    ``shell.callback_scheduling``, what its status says), and its ``cpus`` (:func:`declare_cpus`).  ``applies``
+    False (the simulator in lockstep, where its ``lockstep_priority`` decides): declared, but 0 for the process,
+    and ``callback_scheduling`` left as it is."""
     node = _node_of(shell)
     shell.callback_priority = int(declare(
         node, "callback_priority", 0,
@@ -339,11 +340,72 @@ def declare_callback_priority(shell, *, applies: bool = True) -> int:
         "by the OS (no CAP_SYS_NICE / rtprio limit): a warning, normal scheduling.  Composed with the simulator "
         "in lockstep, the simulator's lockstep_priority decides",
         check=_priority_check("callback_priority")))
+    declare_cpus(shell)
     if not applies:
         shell.callback_priority = 0
         return 0
     shell.callback_scheduling = "normal" if shell.callback_priority == 0 else "not yet set (the node is not spinning)"
     return shell.callback_priority
+
+
+def parse_cpus(text: str, name: str = "cpus") -> frozenset[int]:
+    """A CPU list as ``taskset -c`` takes it (``"1"``, ``"0,2"``, ``"0-3"``; ``""``: none given, the OS's choice),
+    each CPU one this process may run on (:func:`os.sched_getaffinity`); else :class:`NodeConfigError` naming the
+    parameter ``name``."""
+    allowed = os.sched_getaffinity(0)
+    cpus: set[int] = set()
+    for part in (p.strip() for p in str(text).split(",")):
+        if not part:
+            continue
+        lo, _, hi = part.partition("-")
+        try:
+            first, last = int(lo), int(hi if hi else lo)
+        except ValueError:
+            raise NodeConfigError(f"parameter {name!r}: {part!r} is not a CPU number or range (e.g. '1', '0,2', "
+                                  "'0-3')") from None
+        if first < 0 or last < first:
+            raise NodeConfigError(f"parameter {name!r}: {part!r} is not a CPU range")
+        cpus.update(range(first, last + 1))
+    if not cpus <= allowed:
+        raise NodeConfigError(f"parameter {name!r}: CPU(s) {sorted(cpus - allowed)} not available to this process "
+                              f"(it may run on {format_cpus(allowed)})")
+    if str(text).strip() and not cpus:
+        raise NodeConfigError(f"parameter {name!r}: {text!r} names no CPU")
+    return frozenset(cpus)
+
+
+def format_cpus(cpus) -> str:
+    """``"0,1"`` for the CPUs {0, 1}."""
+    return ",".join(str(c) for c in sorted(cpus))
+
+
+def declare_cpus(shell) -> frozenset[int]:
+    """Declare ``cpus`` on a node of the control loop (``shell.cpus``; :func:`run_nodes` pins every thread of the
+    process to the union of its nodes' before they spin, :func:`set_process_cpus`)."""
+    shell.cpus = parse_cpus(declare(
+        _node_of(shell), "cpus", "",
+        "CPUs this node's process runs on (all its threads), as taskset -c takes them: '1', '0,2', '0-3'; '' = "
+        "the OS's choice (default).  In real time, the controllers and the simulator's other threads on one CPU "
+        "and the simulator's stepping thread on another (its stepping_cpus) keep a woken controller from waiting "
+        "behind the stepping thread; a composed process takes the union of its nodes'"), "cpus")
+    return shell.cpus
+
+
+def set_process_cpus(cpus) -> int:
+    """Pin every thread of this process to ``cpus`` (threads started later inherit their starter's CPUs).  Returns
+    the number of threads pinned."""
+    try:
+        tids = [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:  # no procfs: this thread only
+        tids = [threading.get_native_id()]
+    n = 0
+    for tid in tids:
+        try:
+            os.sched_setaffinity(tid, cpus)
+            n += 1
+        except (ProcessLookupError, PermissionError):  # the thread ended; not ours to move
+            continue
+    return n
 
 
 def declare_lockstep_priority(shell, *, lockstep: bool) -> int:
@@ -672,6 +734,9 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
         for shell in shells:
             executor.add_node(_node_of(shell))
         _apply_callback_priority(shells)
+        cpus = frozenset().union(*(getattr(sh, "cpus", frozenset()) for sh in shells))
+        if cpus:  # before the simulator's stepping thread takes its own (stepping_cpus) once the clock may start
+            set_process_cpus(cpus)
         heap.settle()  # the start-up heap out of the collector's walk: no 30-45 ms pause while running
         profiler = _profiler()
         try:
@@ -752,6 +817,7 @@ class NodeStatus:
                 "use_sim_time": str(self.node.get_parameter("use_sim_time").value).lower()}
         vals.update(self.values())
         vals.update(heap.PAUSES.status_values())
+        vals["cpus"] = format_cpus(os.sched_getaffinity(0))  # what the executor thread (this one) may run on
         st = DiagnosticStatus(level=bytes([self.level]), name=self.name, message=self.message,
                               hardware_id=self.node.get_fully_qualified_name(),
                               values=[KeyValue(key=k, value=str(v)) for k, v in vals.items()])

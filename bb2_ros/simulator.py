@@ -147,7 +147,8 @@ from bb2_sim.state import VehicleState
 from bb2_ros import heap
 from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, build_piece, check_remaps,
                                  contract_publisher, declare, declare_callback_priority, declare_lockstep_priority,
-                                 mission_only, node_options, require_choice, require_positive, run_node)
+                                 format_cpus, mission_only, node_options, parse_cpus, require_choice,
+                                 require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics",
@@ -208,6 +209,12 @@ class Simulator(Node):
             "wake fast, as cyclictest does); refused by the OS: a warning"))
         if not 0 <= self.realtime_priority <= 99:
             raise NodeConfigError(f"realtime_priority must be in 0..99, got {self.realtime_priority}")
+        self.stepping_cpus = parse_cpus(P(
+            "stepping_cpus", "", "realtime: CPUs of the stepping thread, as taskset -c takes them ('0', '0,2'); '' = "
+            "the process's (its cpus). Apart from the CPUs of the controllers and of this node's other threads, "
+            "a woken controller does not wait behind the stepping thread"), "stepping_cpus")
+        self.stepping_cpu_affinity = "the process's"
+        self.process_cpus = format_cpus(os.sched_getaffinity(0))  # again once spinning: run_nodes may pin it (cpus)
         self.command_timeout_s = L(
             "command_timeout_s", 0.5, "realtime: wall s without a valid command before the failsafe",
             lambda v: self._set_timing("command_timeout_s", v), positive("command_timeout_s"))
@@ -526,6 +533,7 @@ class Simulator(Node):
     def _start(self) -> None:
         """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
         after ``startup_timeout_s``), so that a recorder or a test started with the graph misses nothing."""
+        self.process_cpus = format_cpus(os.sched_getaffinity(0))  # the executor thread: the process's CPUs now
         n = self.count_subscribers(self.resolve_topic_name(node_topic_name("/bb2/state_native")))  # rclpy counts
         # unremapped names
         def readers(t: str) -> int:  # after -r remaps; the reader node's own readers
@@ -628,6 +636,7 @@ class Simulator(Node):
                                                "stepping with normal scheduling")
         if self.hold_cpu_dma_latency:
             self._hold_cpu_dma_latency()
+        pinned = not self.stepping_cpus
         late = 0  # consecutive ticks with no time left before the next deadline ...
         late_since = 0.0  # ... since this wall time (the first of them)
         while not self._rt_stop.is_set():
@@ -635,6 +644,15 @@ class Simulator(Node):
             if not self.started:  # _start sets the first deadline
                 self._rt_stop.wait(0.01)
                 continue
+            if not pinned:  # now: the process's threads were pinned (its cpus) before it began to spin
+                pinned = True
+                try:
+                    os.sched_setaffinity(0, self.stepping_cpus)
+                    self.stepping_cpu_affinity = format_cpus(os.sched_getaffinity(0))
+                    self.get_logger().info(f"stepping thread on CPU(s) {self.stepping_cpu_affinity}")
+                except OSError as exc:
+                    self.stepping_cpu_affinity = f"the process's (stepping_cpus refused: {exc})"
+                    self.get_logger().warning(f"stepping_cpus {format_cpus(self.stepping_cpus)} refused ({exc})")
             if self._awaiting_commands:  # the loop closes before the clock starts (wait_for_commands)
                 with self._lock:
                     if self._first_commands_in():
@@ -824,6 +842,8 @@ class Simulator(Node):
                 "scheduling": self.scheduling if realtime else "executor (lockstep)",
                 "callback_scheduling": self.callback_scheduling,
                 "cpu_dma_latency": self.cpu_latency,
+                "cpus": self.process_cpus,
+                "stepping_cpus": self.stepping_cpu_affinity if realtime else "",
                 "step_rate_hz": f"{self._rate_measured:.2f}",
                 "real_time_factor": f"{self._rate_measured * self.h:.3f}",
                 "duration_s": f"{self.duration_s:g}", "mission_file": self.mission_file}

@@ -280,6 +280,10 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     if args.normal_scheduling:  # what a user without root gets
         params.update(realtime_priority=0, hold_cpu_dma_latency=False)
         controllers = {n: {"callback_priority": 0} for n in REALTIME_CONTROLLERS}
+    if args.cpus:  # the stepping thread apart from everything else of the loop
+        stepping, others = args.cpus.split(":")
+        params.update(stepping_cpus=stepping, cpus=others)
+        controllers = {n: {**controllers.get(n, {}), "cpus": others} for n in REALTIME_CONTROLLERS}
     res, _, probe = run_graph_once(REPO / "missions" / "canyon.yaml", out, "realtime", params, timeout_s=args.timeout,
                                    probe=True, groups=LAYOUTS[layout], node_params=controllers)
     print(f"real time at {rate:g} Hz ({layout}): {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s"
@@ -329,7 +333,8 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     status = last_simulator_status(reader)
     print(f"  simulator status: overruns {status.get('overruns')}, failsafe steps {status.get('failsafe_steps')}, "
           f"measured step rate {status.get('step_rate_hz')} Hz, stepping thread {status.get('scheduling')}, "
-          f"cpu_dma_latency {status.get('cpu_dma_latency')}")
+          f"cpu_dma_latency {status.get('cpu_dma_latency')}, CPUs: process {status.get('cpus')}, stepping thread "
+          f"{status.get('stepping_cpus')}")
     figures["overruns"] = float(status.get("overruns", "nan"))
     figures["jitter_max_ms"] = float(dev_ms.max())
     # the garbage collector's pauses stop every thread of a process (bb2_ros.heap): each process's, from its
@@ -369,7 +374,12 @@ def main() -> int:
                     help="real time without the controllers' SCHED_FIFO callbacks (callback_priority 0, as in "
                          "lockstep), the simulator's SCHED_FIFO thread and its cpu_dma_latency request "
                          "(realtime_priority 0, hold_cpu_dma_latency false): what a user without root gets")
+    ap.add_argument("--cpus", default=None, metavar="STEPPING:OTHERS",
+                    help="real time: the simulator's stepping thread on CPU(s) STEPPING, its other threads and the "
+                         "controllers' processes on OTHERS (its stepping_cpus and every loop node's cpus), e.g. 0:1")
     args = ap.parse_args()
+    if args.cpus is not None and args.cpus.count(":") != 1:
+        ap.error("--cpus takes STEPPING:OTHERS, e.g. 0:1")
     if args.repeat < 1:
         ap.error("--repeat must be >= 1")
     layouts = ["alone", "composed"] if args.layout == "both" else [args.layout]

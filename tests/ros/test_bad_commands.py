@@ -466,8 +466,9 @@ def test_lockstep_run_ends_only_once_the_recorder_holds_its_final_step(bench):
     assert "did not acknowledge the final step t = 1.000 s within recorder_ack_timeout_s 1.5 s" in out, out
 
 
-@pytest.mark.parametrize("case", ["params_yaml", "params_type", "params_choice", "params_priority", "mission_yaml",
-                                  "mission_key", "mission_missing", "no_mission"])
+@pytest.mark.parametrize("case", ["params_yaml", "params_type", "params_choice", "params_priority", "params_cpus",
+                                  "params_stepping_cpus", "mission_yaml", "mission_key", "mission_missing",
+                                  "no_mission"])
 def test_malformed_params_or_mission_exit_nonzero(tmp_path, case):
     domain_id = claimed_domain()
     good = tmp_path / "good.yaml"
@@ -485,6 +486,12 @@ def test_malformed_params_or_mission_exit_nonzero(tmp_path, case):
     elif case == "params_priority":
         args, expect = ["--params-file", _params(tmp_path, realtime_priority=120, mission_file=str(good))], \
             "realtime_priority must be in 0..99"
+    elif case == "params_cpus":  # a CPU this machine does not have
+        args, expect = ["--params-file", _params(tmp_path, cpus="0,4095", mission_file=str(good))], \
+            "parameter 'cpus': CPU(s) [4095] not available to this process"
+    elif case == "params_stepping_cpus":
+        args, expect = ["--params-file", _params(tmp_path, stepping_cpus="first", mission_file=str(good))], \
+            "parameter 'stepping_cpus': 'first' is not a CPU number or range"
     elif case == "mission_yaml":
         f = tmp_path / "m.yaml"
         f.write_text("path: [circle\n")
@@ -511,8 +518,8 @@ def _cpu_s(pid: int) -> float:
 
 def test_realtime_loop_idles_once_the_mission_is_over(bench):
     """A real-time run that finished (the simulator stays up: ``exit_at_end`` false; a diverged one takes the same
-    path) must not spin: its stepping thread polls at the step rate, keeps its SCHED_FIFO priority (nothing to give up) and costs nearly
-    no CPU.  (It used to busy-loop at its real-time priority, its deadline no longer advancing: a core held at
+    path) must not spin: its stepping thread polls at the step rate, keeps its SCHED_FIFO priority (nothing to give
+    up) and costs nearly no CPU.  (It used to busy-loop at its real-time priority, its deadline no longer advancing: a core held at
     SCHED_FIFO 50 for a second after every real-time mission, then, given up, half a core until the process ended.)"""
     b, start = bench
     sim = start(time_mode="realtime", rate_hz=100.0, duration_s=1.0, status_period_s=0.2, exit_at_end=False)
@@ -527,3 +534,36 @@ def test_realtime_loop_idles_once_the_mission_is_over(bench):
     assert cpu < 0.25 * wall, (cpu, wall, st)
     assert not st.get("scheduling", "").startswith("normal (SCHED_FIFO given up"), st
     assert int(st["overruns"]) == 0, st
+
+
+def _allowed_cpus(pid: int) -> dict[int, str]:
+    """Each thread of process ``pid``: the CPUs it may run on, as the kernel lists them (``Cpus_allowed_list``)."""
+    out = {}
+    for t in os.listdir(f"/proc/{pid}/task"):
+        try:
+            for line in Path(f"/proc/{pid}/task/{t}/status").read_text().splitlines():
+                if line.startswith("Cpus_allowed_list:"):
+                    out[int(t)] = line.split(":", 1)[1].strip()
+        except OSError:  # the thread ended
+            continue
+    return out
+
+
+def test_realtime_stepping_thread_and_the_rest_of_the_process_on_their_own_cpus(bench):
+    """``stepping_cpus`` puts the real-time stepping thread on its CPU(s), ``cpus`` every other thread of the process
+    (executor, middleware, BLAS pools): as the kernel reports them, and as the status says.  A controller woken for
+    a state then never waits behind the stepping thread (on this instance's vCPU-packing scheduler it did: the
+    benchmark's hops, README)."""
+    if len(os.sched_getaffinity(0)) < 2 or not {0, 1} <= os.sched_getaffinity(0):
+        pytest.skip("needs CPUs 0 and 1")
+    b, start = bench
+    sim = start(time_mode="realtime", rate_hz=100.0, duration_s=300.0, status_period_s=0.2, stepping_cpus="0",
+                cpus="1")
+    b.wait(lambda: b.last_status().get("stepping_cpus") == "0" and b.last_status().get("cpus") == "1", 60,
+           "the simulator's CPUs in its status", sim)
+    allowed = _allowed_cpus(sim.pid)
+    on_0 = [t for t, c in allowed.items() if c == "0"]
+    assert len(on_0) == 1, allowed                       # the stepping thread alone
+    assert all(c == "1" for t, c in allowed.items() if t not in on_0), allowed
+    n = int(b.last_status()["step"])
+    b.wait(lambda: int(b.last_status().get("step", 0)) > n + 20, 10, "stepping on", sim)
