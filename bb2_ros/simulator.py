@@ -676,7 +676,8 @@ class Simulator(Node):
                     # second of wall time (not of steps: at a rate far beyond the step's cost that was seconds)
                     try:
                         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-                        self.scheduling = "normal (SCHED_FIFO given up: overruns)"
+                        self.scheduling = (f"normal (SCHED_FIFO given up: late on every tick for "
+                                           f"{now - late_since:.2f} s)")
                     except (OSError, AttributeError):
                         pass
                     self.warn.warn("rt_drop", f"{late} steps in a row over {now - late_since:.2f} s left no time "

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import signal
 import sys
 import subprocess
@@ -358,8 +359,11 @@ def test_realtime_thread_gives_up_fifo_when_it_overruns_every_step(bench):
         walls = list(zip(b.status_walls, b.status))
     late = [w for w, s in walls if s.get("scheduling") == "SCHED_FIFO 1" and int(s.get("overruns", 0)) > 0]
     given = next(w for w, s in walls if s.get("scheduling", "").startswith("normal (SCHED_FIFO given up"))
-    # late from the first status on (statuses every 0.2 s), given up after a second of it: not before, nor seconds on
-    assert late and 0.6 <= given - late[0] < 4.0, (given - late[0] if late else None, st)
+    # given up after a second of wall time late on every tick, as the simulator measured it (the bench's own receive
+    # times bunch when the busy thread and a loaded machine starve it: once 4 statuses within 1 ms), not seconds on
+    m = re.search(r"late on every tick for ([0-9.]+) s", st["scheduling"])
+    assert m and 1.0 <= float(m.group(1)) < 2.0, st
+    assert late and given - late[0] < 4.0, (given - late[0] if late else None, st)  # and not seconds after, here
     n = int(st["step"])
     b.wait(lambda: int(b.last_status().get("step", 0)) > n + 50, 10, "stepping on", sim)
 

@@ -79,6 +79,11 @@ def node_pid(launcher_pid: int, node: str) -> int | None:
     return found
 
 
+_RCLPY_SETUP = threading.Lock()
+"""The cells run side by side in threads of this process: their probes' rclpy context and node set-up and tear-down
+go one at a time (a probe closing while another was being made crashed the test process once: a segfault in rcl)."""
+
+
 class Probe:
     """A tiny rclpy node on the run's domain: the latest ``/bb2/planes/cmd`` stamp and how many came (the loop answered those steps)."""
 
@@ -90,17 +95,18 @@ class Probe:
 
         from bb2_msgs_py.contract import message_class, qos_profile
 
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("fault_matrix_probe", context=self.context, start_parameter_services=False,
-                                      enable_rosout=False)
         self.last_cmd_s: float | None = None
         self.n_cmds = 0
         self.closed_loop = threading.Event()
-        self.node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd", self._on_cmd,
-                                      qos_profile("/bb2/planes/cmd"))
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
+        with _RCLPY_SETUP:
+            self.context = Context()
+            rclpy.init(context=self.context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+            self.node = rclpy.create_node("fault_matrix_probe", context=self.context, start_parameter_services=False,
+                                          enable_rosout=False)
+            self.node.create_subscription(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd",
+                                          self._on_cmd, qos_profile("/bb2/planes/cmd"))
+            self.executor = SingleThreadedExecutor(context=self.context)
+            self.executor.add_node(self.node)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
@@ -127,10 +133,11 @@ class Probe:
 
         self._stop.set()
         self._thread.join(timeout=2.0)
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        if self.context.ok():
-            rclpy.shutdown(context=self.context)
+        with _RCLPY_SETUP:
+            self.executor.shutdown(timeout_sec=1.0)
+            self.node.destroy_node()
+            if self.context.ok():
+                rclpy.shutdown(context=self.context)
 
 
 # ================================================================================ one cell
