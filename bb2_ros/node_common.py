@@ -391,15 +391,17 @@ def declare_cpus(shell) -> frozenset[int]:
     return shell.cpus
 
 
+def process_cpus() -> str:
+    """The CPUs this process runs on, as its main thread (the executor's, under :func:`run_nodes`) may: ``"0,1"``
+    (from any thread: the stepping thread has its own, ``stepping_cpus``)."""
+    return format_cpus(os.sched_getaffinity(os.getpid()))
+
+
 def set_process_cpus(cpus) -> int:
     """Pin every thread of this process to ``cpus`` (threads started later inherit their starter's CPUs).  Returns
     the number of threads pinned."""
-    try:
-        tids = [int(t) for t in os.listdir("/proc/self/task")]
-    except OSError:  # no procfs: this thread only
-        tids = [threading.get_native_id()]
     n = 0
-    for tid in tids:
+    for tid in _thread_ids():
         try:
             os.sched_setaffinity(tid, cpus)
             n += 1
@@ -426,17 +428,21 @@ def declare_lockstep_priority(shell, *, lockstep: bool) -> int:
     return value
 
 
+def _thread_ids() -> list[int]:
+    """The native ids of this process's threads (/proc/self/task; without procfs: this thread only)."""
+    try:
+        return sorted(int(t) for t in os.listdir("/proc/self/task"))
+    except OSError:
+        return [threading.get_native_id()]
+
+
 def _scheduled_threads() -> list[int]:
     """The threads a callback priority applies to: this one (the executor's: every callback runs on it) and the
     middleware's (Fast DDS names its threads ``dds.*``: receive, events, discovery).  Other threads (the BLAS
     pools of numpy and scipy, which may spin while they wait) stay as they are."""
     me = threading.get_native_id()
     out = [me]
-    try:
-        tids = sorted(int(t) for t in os.listdir("/proc/self/task"))
-    except OSError:  # no procfs: this thread only
-        return out
-    for tid in tids:
+    for tid in _thread_ids():
         if tid == me:
             continue
         try:
@@ -817,7 +823,7 @@ class NodeStatus:
                 "use_sim_time": str(self.node.get_parameter("use_sim_time").value).lower()}
         vals.update(self.values())
         vals.update(heap.PAUSES.status_values())
-        vals["cpus"] = format_cpus(os.sched_getaffinity(0))  # what the executor thread (this one) may run on
+        vals["cpus"] = process_cpus()
         st = DiagnosticStatus(level=bytes([self.level]), name=self.name, message=self.message,
                               hardware_id=self.node.get_fully_qualified_name(),
                               values=[KeyValue(key=k, value=str(v)) for k, v in vals.items()])

@@ -147,8 +147,8 @@ from bb2_sim.state import VehicleState
 from bb2_ros import heap
 from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, build_piece, check_remaps,
                                  contract_publisher, declare, declare_callback_priority, declare_lockstep_priority,
-                                 format_cpus, mission_only, node_options, parse_cpus, require_choice,
-                                 require_positive, run_node)
+                                 format_cpus, mission_only, node_options, parse_cpus, process_cpus,
+                                 require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics",
@@ -214,7 +214,6 @@ class Simulator(Node):
             "the process's (its cpus). Apart from the CPUs of the controllers and of this node's other threads, "
             "a woken controller does not wait behind the stepping thread"), "stepping_cpus")
         self.stepping_cpu_affinity = "the process's"
-        self.process_cpus = format_cpus(os.sched_getaffinity(0))  # again once spinning: run_nodes may pin it (cpus)
         self.command_timeout_s = L(
             "command_timeout_s", 0.5, "realtime: wall s without a valid command before the failsafe",
             lambda v: self._set_timing("command_timeout_s", v), positive("command_timeout_s"))
@@ -533,7 +532,6 @@ class Simulator(Node):
     def _start(self) -> None:
         """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
         after ``startup_timeout_s``), so that a recorder or a test started with the graph misses nothing."""
-        self.process_cpus = format_cpus(os.sched_getaffinity(0))  # the executor thread: the process's CPUs now
         n = self.count_subscribers(self.resolve_topic_name(node_topic_name("/bb2/state_native")))  # rclpy counts
         # unremapped names
         def readers(t: str) -> int:  # after -r remaps; the reader node's own readers
@@ -843,7 +841,7 @@ class Simulator(Node):
                 "scheduling": self.scheduling if realtime else "executor (lockstep)",
                 "callback_scheduling": self.callback_scheduling,
                 "cpu_dma_latency": self.cpu_latency,
-                "cpus": self.process_cpus,
+                "cpus": process_cpus(),
                 "stepping_cpus": self.stepping_cpu_affinity if realtime else "",
                 "step_rate_hz": f"{self._rate_measured:.2f}",
                 "real_time_factor": f"{self._rate_measured * self.h:.3f}",

@@ -73,8 +73,8 @@ class Probe:
         from bb2_msgs_py.contract import message_class, qos_profile
 
         self.cv, self._deserialize = cv, deserialize_message
-        self.state_src: dict[int, int] = {}         # stamp -> source time of its first publication
-        self.state_sends: dict[int, list[int]] = {}  # ... of every one (t = 0 is re-sent until the clock starts)
+        self.state_sends: dict[int, list[int]] = {}  # stamp -> source times of its publications (t = 0 is re-sent
+        #                                               until the clock starts)
         self.cmd_src: dict[int, int] = {}
         self.hop_src: dict[str, dict[int, int]] = {"/bb2/guidance/rate_cmd": {}, "/bb2/autopilot/vh_cmd": {}}
         self.context = Context()
@@ -108,7 +108,6 @@ class Probe:
 
     def _on_state(self, msg, info) -> None:
         t_ns = self.cv.seconds_to_ns(self.cv.state_native_from_message(msg).t)
-        self.state_src.setdefault(t_ns, int(info["source_timestamp"]))
         self.state_sends.setdefault(t_ns, []).append(int(info["source_timestamp"]))
 
     def _on_cmd(self, msg, info) -> None:
@@ -291,7 +290,7 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     if res.exit_code != 0:
         return {}
     figures = {}
-    stamps = sorted(probe.state_src)
+    stamps = sorted(probe.state_sends)
     # the stepping's periods, not the one from the state of t = 0: the simulator waits with it for the controllers'
     # first answer (wait_for_commands; re-sending it), and its clock starts when that comes, not a period later
     pubs = np.array([max(probe.state_sends[s]) for s in stamps], dtype=np.int64)
@@ -305,7 +304,7 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     figures["jitter_p99_ms"] = float(np.percentile(dev_ms, 99))
     # each state's publication that its answer followed (the last before the answer, for the re-sent state of t = 0)
     state_src = {s: max([p for p in probe.state_sends[s] if p <= probe.cmd_src[s]] or probe.state_sends[s][:1])
-                 if s in probe.cmd_src else probe.state_src[s] for s in stamps}
+                 if s in probe.cmd_src else probe.state_sends[s][0] for s in stamps}
     lat_ms = np.array([(probe.cmd_src[s] - state_src[s]) * 1e-6 for s in stamps if s in probe.cmd_src])
     answered = [s for s in stamps if s in probe.cmd_src]
     if answered:

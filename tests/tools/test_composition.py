@@ -90,9 +90,7 @@ def _last_statuses(bag: Path) -> dict[str, dict[str, str]]:
 
 
 def _status_names(bag: Path) -> set[str]:
-    from bb2_tools.bagfile import BagReader
-
-    return {st.name for _t, _lt, msg in BagReader(bag).messages("/bb2/status") for st in msg.status}
+    return set(_last_statuses(bag))
 
 
 @pytest.fixture(scope="module")
