@@ -51,10 +51,17 @@ def node_pid(node: str, *must_contain: str, timeout_s: float = 60.0) -> int:
     raise AssertionError(f"no {node} process with {must_contain}")
 
 
+def status_sim_time(text: str) -> float | None:
+    """The sim time of the last bb2-launch status line in ``text`` (``sim 12.35 s``), or None."""
+    import re
+
+    found = re.findall(r"sim\s+([0-9.]+) s", text)
+    return float(found[-1]) if found else None
+
+
 def read_until_sim_time(p: subprocess.Popen, min_sim_s: float = 0.0, timeout_s: float = 240.0) -> str:
     """Read a running bb2-launch's stderr until its monitor line shows the sim time past ``min_sim_s`` (> 0: the
     graph steps); returns what it printed."""
-    import re
     import time
 
     seen = ""
@@ -64,8 +71,8 @@ def read_until_sim_time(p: subprocess.Popen, min_sim_s: float = 0.0, timeout_s: 
         if not line and p.poll() is not None:
             break
         seen += line
-        m = re.search(r"sim\s+([0-9.]+) s", line)
-        if m and float(m.group(1)) > min_sim_s:
+        t = status_sim_time(line)
+        if t is not None and t > min_sim_s:
             return seen
     raise AssertionError(f"the graph never passed sim time {min_sim_s:g} s:\n{seen[-3000:]}")
 
@@ -104,10 +111,12 @@ def wait_for_clock(domain_id: int, min_sim_s: float, timeout_s: float = 120.0) -
 
 
 def launch_with_fault(mission: Path, out: Path, *args: str, fault, min_sim_s: float = 0.0,
-                      timeout_s: float = 600.0) -> tuple[int, str]:
+                      timeout_s: float = 600.0, fault_reads_launcher: bool = False) -> tuple[int, str]:
     """``bb2-launch MISSION --out OUT --end-at simulator --timeout 600 --status-period 0.5 ARGS``; once its sim
     time passes ``min_sim_s`` (a status line every 0.5 s: within a few sim seconds of it however fast the machine),
     ``fault()`` (a SIGKILL or SIGSTOP of a node); then the run to its end, at most ``timeout_s``.
+    With ``fault_reads_launcher`` the fault is called as ``fault(launcher, seen)`` (the running bb2-launch and what
+    it printed so far: it may read on, e.g. :func:`read_until_sim_time`) and returns what it read.
     Returns (exit code, everything it printed on stderr); the launcher is killed if the test fails meanwhile."""
     p = subprocess.Popen([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--end-at",
                           "simulator", "--timeout", "600", "--status-period", "0.5", *args], cwd=out.parent,
@@ -115,7 +124,10 @@ def launch_with_fault(mission: Path, out: Path, *args: str, fault, min_sim_s: fl
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         seen = read_until_sim_time(p, min_sim_s)
-        fault()
+        if fault_reads_launcher:
+            seen += fault(p, seen)
+        else:
+            fault()
         _, err = p.communicate(timeout=timeout_s)
     finally:
         if p.poll() is None:

@@ -24,7 +24,8 @@ from pathlib import Path
 
 import pytest
 
-from rosenv import launch_with_fault, node_pid, ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import (launch_with_fault, node_pid, read_until_sim_time, ros_env,  # noqa: E402  (tests/rosenv.py)
+                    status_sim_time)
 
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable
@@ -44,6 +45,35 @@ def _run_stopping_the_recorder(mission: Path, out: Path, *extra: str) -> tuple[i
     recorder for 5 s; (exit code, everything it printed)."""
     return launch_with_fault(mission, out, *extra, min_sim_s=10.0,
                              fault=lambda: _stop_for(node_pid("recorder", f"--out {out} "), 5.0))
+
+
+STOPPED_SIM_S = 30.0
+"""How long (sim s) the real-time graph steps with its recorder stopped: 600 steps at the 0.05-s step, against the
+writers' histories of 100 and what the transports hold (idle, and beside two CPU hogs, ~400 of each per-step topic
+were lost after 500 steps)."""
+
+
+def _stop_while_the_graph_steps(out: Path, timeline: dict):
+    """A fault for :func:`launch_with_fault` (``fault_reads_launcher``): SIGSTOP the recorder until the launcher's
+    monitor (its own /clock subscription) shows the graph stepped ``STOPPED_SIM_S`` on, and at least 5 s of wall
+    time, so the loss does not hang on how fast a loaded machine stepped meanwhile.  ``timeline`` gets the sim times
+    the monitor showed just after the stop and at the continue, and the wall seconds stopped."""
+    def fault(launcher, _seen: str) -> str:
+        pid = node_pid("recorder", f"--out {out} ")
+        t0 = time.monotonic()
+        os.kill(pid, signal.SIGSTOP)
+        read = ""
+        try:
+            read = read_until_sim_time(launcher, 0.0)  # the first status line after the stop
+            timeline["stopped_at_sim_s"] = status_sim_time(read)
+            read += read_until_sim_time(launcher, timeline["stopped_at_sim_s"] + STOPPED_SIM_S, timeout_s=120.0)
+            time.sleep(max(0.0, 5.0 - (time.monotonic() - t0)))
+        finally:
+            os.kill(pid, signal.SIGCONT)
+        timeline["continued_at_sim_s"] = status_sim_time(read)
+        timeline["stopped_wall_s"] = round(time.monotonic() - t0, 2)
+        return read
+    return fault
 
 
 def _stop_for(pid: int, seconds: float) -> None:
@@ -122,27 +152,29 @@ def test_lockstep_canyon_with_the_recorder_stopped_5_s_records_every_step_of_eve
     assert "did not acknowledge the final step" not in log, log[-2000:]  # the run ended on the final ack
 
 
-def test_realtime_recorder_stopped_5_s_the_gap_is_in_the_metadata_the_launcher_and_bb2_analyze(tmp_path):
-    """Real time cannot wait: a recorder stopped for 5 s loses what was published meanwhile beyond the writers'
-    histories.  The gap (on /bb2/state_native, or the command topics) is found from the publication sequence numbers, written into the bag's
+def test_realtime_recorder_stopped_600_steps_the_gap_is_in_the_metadata_the_launcher_and_bb2_analyze(tmp_path):
+    """Real time cannot wait: a recorder stopped while the graph steps 600 times (30 sim s at 5x real time, as
+    the launcher's monitor shows them) loses what was published meanwhile beyond the writers' histories.  The gap (on /bb2/state_native, or the command topics) is found from the publication sequence numbers, written into the bag's
     metadata (custom_data bb2_gaps), printed by bb2-launch and warned about by bb2-analyze, which says the figures
     are affected."""
     pytest.importorskip("rclpy")
     mission = tmp_path / "straight_rt.yaml"
     mission.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: straight_rt\nduration_s: 90\n")
     params = tmp_path / "fast.yaml"
-    params.write_text("simulator:\n  ros__parameters:\n    rate_hz: 100.0\n")  # 5x real time: 500 steps in 5 s
+    params.write_text("simulator:\n  ros__parameters:\n    rate_hz: 100.0\n")  # 5x real time: 100 steps a second
     out = tmp_path / "rt"
-    code, err = _run_stopping_the_recorder(mission, out, "--mode", "realtime", "--params", str(params))
+    timeline: dict = {}
+    code, err = launch_with_fault(mission, out, "--mode", "realtime", "--params", str(params), min_sim_s=10.0,
+                                  fault=_stop_while_the_graph_steps(out, timeline), fault_reads_launcher=True)
     assert code == 0, err[-4000:]
     # the topic that lost most (/bb2/state_native when idle; beside two CPU hogs it once lost nothing -- the
     # recorder's transport buffers held its 400 states -- while each command topic lost 401)
     per_step = [g for g in _gaps(out) if g["topic"] in STATE_TOPICS and g["after_sequence"] > 0]
-    assert per_step, _gaps(out)
+    assert per_step, (timeline, _gaps(out))
     topic = max(per_step, key=lambda g: (g["missing"], g["topic"] == "/bb2/state_native"))["topic"]
     gaps = [g for g in per_step if g["topic"] == topic]
     lost = sum(g["missing"] for g in gaps)
-    assert lost >= 100, gaps   # 5 s at 100 Hz, less the writer's history of 100 and what the buffers held
+    assert lost >= 100, (timeline, gaps)  # 600 steps, less the writer's history of 100 and what the buffers held
     # the bag holds exactly the messages the gap does not cover: count + lost = the numbers the publisher used
     from bb2_tools.bagfile import BagReader
 
