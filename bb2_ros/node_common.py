@@ -745,8 +745,15 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
             set_process_cpus(cpus)
         heap.settle()  # the start-up heap out of the collector's walk: no 30-45 ms pause while running
         profiler = _profiler()
+
+        def keep_going() -> bool:
+            return not stop.is_set() and rclpy.ok() and not any(getattr(sh, "done", False) for sh in shells)
+        # a real-time simulator steps on this thread, spinning the executor between its deadlines
+        driver = next((sh for sh in shells if getattr(sh, "drives_executor", False)), None)
         try:
-            while not stop.is_set() and rclpy.ok() and not any(getattr(sh, "done", False) for sh in shells):
+            if driver is not None:
+                driver.drive(executor, keep_going, lambda sched: _callbacks_on_stepping_thread(shells, sched))
+            while keep_going():
                 executor.spin_once(timeout_sec=0.1)
         finally:
             if profiler is not None:
@@ -797,6 +804,17 @@ def _apply_callback_priority(shells: Sequence[Any]) -> None:
             logger.warning(f"callbacks with {outcome}")
         else:
             logger.info(f"callbacks with {outcome}")
+
+
+def _callbacks_on_stepping_thread(shells: Sequence[Any], scheduling: str) -> None:
+    """A real-time simulator steps on the process's executor thread (``realtime_loop`` executor): every node's
+    callbacks run with the stepping thread's ``scheduling``; their ``callback_priority`` still holds for the
+    middleware's threads.  Each node's status says both."""
+    for sh in shells:
+        middleware = getattr(sh, "_middleware_scheduling", None) or getattr(sh, "callback_scheduling", "normal")
+        sh._middleware_scheduling = middleware
+        sh.callback_scheduling = (f"{scheduling} (on the simulator's stepping thread: realtime_loop executor; "
+                                  f"the middleware's threads: {middleware})")
 
 
 # ----------------------------------------------------------------------------------------- status

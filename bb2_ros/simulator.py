@@ -123,7 +123,7 @@ import os
 import sys
 import threading
 import time
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -214,6 +214,23 @@ class Simulator(Node):
             "the process's (its cpus). Apart from the CPUs of the controllers and of this node's other threads, "
             "a woken controller does not wait behind the stepping thread"), "stepping_cpus")
         self.stepping_cpu_affinity = "the process's"
+        self.realtime_loop = require_choice("realtime_loop", P(
+            "realtime_loop", "executor", "realtime: executor (the thread that spins the process's executor steps at "
+            "the deadlines and runs every callback between them: a controller composed with the simulator answers "
+            "a state on the thread that published it, and a command wakes no second thread) | thread (a stepping "
+            "thread of its own beside the executor's)"), ("executor", "thread"))
+        self.answer_first_s = L(
+            "answer_first_s", 0.005, "realtime: once a step's state (and odometry) went out, publish the step's "
+            "other samples (IMU, plane and propeller states, depth, altitude, sensors) only when the controllers' "
+            "plane command to it has come, or after this many wall s (at most half a period): until then they take "
+            "neither the interpreter lock (composed) nor a CPU (one process per node) from the controllers; "
+            "0 = at once", lambda v: setattr(self, "answer_first_s", v), positive("answer_first_s", zero=True))
+        self._process_cpus = ""  # realtime_loop executor: the process's CPUs before its stepping thread was pinned
+        self._on_scheduling: Callable[[str], None] | None = None  # drive(): the executor's thread's scheduling
+        self._answered = threading.Event()  # real time: the plane command to the state of the current step came
+        self._deferred: Callable[[], None] | None = None  # real time: the step's samples held for the answer
+        self.samples_after_answer = 0  # real time: steps whose samples waited for the answer ...
+        self.samples_after_wait = 0  # ... and steps whose answer did not come within answer_first_s
         self.command_timeout_s = L(
             "command_timeout_s", 0.5, "realtime: wall s without a valid command before the failsafe",
             lambda v: self._set_timing("command_timeout_s", v), positive("command_timeout_s"))
@@ -376,10 +393,11 @@ class Simulator(Node):
         self.start_timer = node.create_timer(0.02, self._locked(self._start), clock=steady)
         if self.time_mode is TimeMode.LOCKSTEP:
             self.watchdog = node.create_timer(min(0.01, self.lockstep_retry_s / 2), self._watchdog, clock=steady)
-        else:  # a thread of its own, on absolute wall deadlines (not an executor timer: no callback queue ahead)
+        else:  # on absolute wall deadlines (not an executor timer: no callback queue ahead)
             self._rt_stop = threading.Event()
-            self._rt_thread = threading.Thread(target=self._realtime_loop, name="bb2-sim-realtime", daemon=True)
-            self._rt_thread.start()
+            if not self.drives_executor:  # a thread of its own (else: run_nodes's spinning thread calls drive)
+                self._rt_thread = threading.Thread(target=self._realtime_loop, name="bb2-sim-realtime", daemon=True)
+                self._rt_thread.start()
         node.get_logger().info(
             f"simulator up: mission {self.mission_file}, {self.time_mode.value}"
             + (f" at {self.rate_hz:g} Hz" if self.time_mode is TimeMode.REALTIME else "")
@@ -478,11 +496,14 @@ class Simulator(Node):
             self.warn.warn(verdict.key, verdict.message)
 
     def _on_planes(self, msg) -> None:
-        v = self.gate.on_planes(msg.name, msg.position, msg.header.frame_id, cv.stamp_to_ns(msg.header.stamp),
-                                self._t_ns(), time.monotonic())
+        stamp_ns = cv.stamp_to_ns(msg.header.stamp)
+        now_ns = self._t_ns()
+        v = self.gate.on_planes(msg.name, msg.position, msg.header.frame_id, stamp_ns, now_ns, time.monotonic())
         self._say(v)
         if v.accepted and self.time_mode is TimeMode.LOCKSTEP:
             self._maybe_advance()
+        elif v.accepted and stamp_ns == now_ns:
+            self._answered.set()  # the answer to the state just sent: its step's other samples may go
 
     def _on_propeller(self, msg) -> None:
         v = self.gate.on_propeller(msg.name, msg.velocity, msg.header.frame_id, cv.stamp_to_ns(msg.header.stamp),
@@ -620,9 +641,46 @@ class Simulator(Node):
                                              "(startup_timeout_s): the clock starts on the failsafe")
         return True
 
-    def _realtime_loop(self) -> None:
-        """Real time: step at ``rate_hz`` on absolute monotonic deadlines (sleeps to the next deadline; a
-        step later than a whole period is an overrun: counted, and the schedule restarts from now)."""
+    @property
+    def drives_executor(self) -> bool:
+        """Real time with ``realtime_loop`` executor: the process's spinning thread is to call :meth:`drive`."""
+        return self.time_mode is TimeMode.REALTIME and self.realtime_loop == "executor"
+
+    def drive(self, executor, keep_going: Callable[[], bool],
+              on_scheduling: Callable[[str], None] | None = None) -> None:
+        """The real-time loop on the caller's thread, the one that spins ``executor`` (``realtime_loop``
+        executor): every wait between deadlines spins it, so the callbacks of every node of the process run here,
+        on the stepping thread's priority and CPUs.  A state published here is taken by a composed controller
+        in the same turn (the middleware delivers within the process at once) and its answer is back without
+        waking another thread.  ``on_scheduling(scheduling)``: the stepping thread's scheduling, when it is set
+        or given up (what every node of the process runs its callbacks with).  Returns when ``keep_going()`` is
+        false or the node closes."""
+        def spin_for(seconds: float, until: Callable[[], bool] | None = None) -> bool:
+            deadline = time.monotonic() + seconds
+            while keep_going() and not self._rt_stop.is_set():
+                if until is not None and until():
+                    return True
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                executor.spin_once(timeout_sec=left)
+            return until is not None and until()
+
+        self._on_scheduling = on_scheduling
+        self._realtime_loop(pause=spin_for, keep_going=keep_going)
+
+    def _realtime_loop(self, pause: Callable[..., bool] | None = None,
+                       keep_going: Callable[[], bool] = lambda: True) -> None:
+        """Real time: step at ``rate_hz`` on absolute monotonic deadlines (waits to the next deadline; a
+        step later than a whole period is an overrun: counted, and the schedule restarts from now).  ``pause(s,
+        until=None)`` waits ``s`` seconds or until ``until()`` is true (returns it): a thread of its own sleeps,
+        :meth:`drive` spins the executor meanwhile."""
+        if pause is None:
+            def pause(seconds: float, until: Callable[[], bool] | None = None) -> bool:
+                if until is None:
+                    time.sleep(seconds)
+                    return False
+                return self._answered.wait(seconds)  # (the only condition waited on)
         if self.realtime_priority > 0:
             try:
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.realtime_priority))  # this thread
@@ -632,18 +690,21 @@ class Simulator(Node):
                 self.scheduling = f"normal (SCHED_FIFO {self.realtime_priority} refused: {exc})"
                 self.get_logger().warning(f"realtime_priority {self.realtime_priority} refused ({exc}): "
                                                "stepping with normal scheduling")
+        self._scheduling_said()
         if self.hold_cpu_dma_latency:
             self._hold_cpu_dma_latency()
         pinned = not self.stepping_cpus
         late = 0  # consecutive ticks with no time left before the next deadline ...
         late_since = 0.0  # ... since this wall time (the first of them)
-        while not self._rt_stop.is_set():
+        while not self._rt_stop.is_set() and keep_going():
             period = 1.0 / self.rate_hz  # live parameter: a new rate from the next deadline on
             if not self.started:  # _start sets the first deadline
-                self._rt_stop.wait(0.01)
+                pause(0.01)
                 continue
             if not pinned:  # now: the process's threads were pinned (its cpus) before it began to spin
                 pinned = True
+                if self.drives_executor:  # the executor's thread: the process's CPUs are said as they were
+                    self._process_cpus = process_cpus()
                 try:
                     os.sched_setaffinity(0, self.stepping_cpus)
                     self.stepping_cpu_affinity = format_cpus(os.sched_getaffinity(0))
@@ -657,12 +718,15 @@ class Simulator(Node):
                         self._awaiting_commands = False
                         self._next_tick = time.monotonic()
                 if self._awaiting_commands:
-                    self._rt_stop.wait(0.005)
+                    pause(0.005)
                     continue
             now = time.monotonic()
             delay = self._next_tick - now
             if delay > 0:
-                time.sleep(delay)
+                pause(delay)
+                while (left := self._next_tick - time.monotonic()) > 0 and not self._rt_stop.is_set() \
+                        and keep_going():
+                    pause(left)  # (a spin may end early: a callback ran)
                 late = 0
             else:
                 late += 1
@@ -676,6 +740,7 @@ class Simulator(Node):
                         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
                         self.scheduling = (f"normal (SCHED_FIFO given up: late on every tick for "
                                            f"{now - late_since:.2f} s)")
+                        self._scheduling_said()
                     except (OSError, AttributeError):
                         pass
                     self.warn.warn("rt_drop", f"{late} steps in a row over {now - late_since:.2f} s left no time "
@@ -687,11 +752,36 @@ class Simulator(Node):
                 try:
                     self._tick(period)
                 except Exception as exc:  # never a silent dead stepping thread: the node exits 1, says why
-                    self.diverged = self.diverged or f"stepping thread failed: {type(exc).__name__}: {exc}"
-                    self.exit_code = 1
-                    self.get_logger().error(self.diverged)
-                    self.done = True
+                    self._stepping_failed(exc)
                     return
+            if self._deferred is not None:
+                self._publish_after_answer(period, pause)
+
+    def _scheduling_said(self) -> None:
+        if self._on_scheduling is not None:
+            self._on_scheduling(self.scheduling)
+
+    def _publish_after_answer(self, period: float, pause: Callable[..., bool]) -> None:
+        """The held samples of the step just taken: out once the controllers answered its state (the lock free
+        meanwhile: the answer's callback takes it), or after ``answer_first_s`` (at most half a period)."""
+        if pause(min(self.answer_first_s, 0.5 * period), self._answered.is_set):
+            self.samples_after_answer += 1
+        else:
+            self.samples_after_wait += 1
+        with self._lock:
+            publish, self._deferred = self._deferred, None
+            try:
+                if publish is not None:
+                    publish()
+            except Exception as exc:  # noqa: BLE001 - as a failed tick
+                self._stepping_failed(exc)
+
+    def _stepping_failed(self, exc: Exception) -> None:
+        """Never a silent dead stepping thread: the node exits 1 and says why."""
+        self.diverged = self.diverged or f"stepping thread failed: {type(exc).__name__}: {exc}"
+        self.exit_code = 1
+        self.get_logger().error(self.diverged)
+        self.done = True
 
     def _hold_cpu_dma_latency(self) -> None:
         """PM QoS: 0 us wake-up latency for as long as the file stays open (closed in :meth:`close`)."""
@@ -742,8 +832,27 @@ class Simulator(Node):
         finished = self.t >= self.duration_s - 1e-9 or self._path_flown
         if self.nav is not None:  # the filter takes the samples of this step before its estimate of t_n+1 goes out
             self._publish_measurements(state, rec)
-        if not finished:
-            self._publish_trigger(clock=False)  # first: the controllers work on step n+1 while the sensors go out
+        if finished:
+            self._publish_samples(state, rec)
+            self._publish_trigger(clock=False)
+            self._publish_sensors()
+            self.finished = True
+            self.get_logger().info(f"mission duration reached at t = {self.t:.3f} s")
+            self._publish_status()
+            self._end_when_recorded()
+            return
+        self._answered.clear()
+        self._publish_trigger(clock=False)  # first: the controllers work on step n+1 while the samples go out
+        if self.time_mode is TimeMode.REALTIME and self.answer_first_s > 0:
+            self._publish_odometry()  # (a controller on state_source odometry answers it)
+            self._deferred = lambda: (self._publish_samples(state, rec), self._publish_sensors(odometry=False))
+            return
+        self._publish_samples(state, rec)
+        self._publish_sensors()
+
+    def _publish_samples(self, state: VehicleState, rec) -> None:
+        """The samples of the step just integrated from ``state`` (``[t_n, t_n+1)``): IMU, plane and propeller
+        states, and the sensor suite's measurements (those the navigation filter takes went out before)."""
         t = rec.t
         f_flu = cv.specific_force_flu(state, rec.ev.xdot[6:9], self.g)
         self.pub["/bb2/imu"].publish(cv.imu_message(state, f_flu, frame_id=self.base_link))
@@ -753,15 +862,6 @@ class Simulator(Node):
                                                                       frame_id=self.base_link))
         if self.suite is not None and self.nav is None:
             self._publish_measurements(state, rec)
-        if finished:
-            self._publish_trigger(clock=False)
-            self._publish_sensors()
-            self.finished = True
-            self.get_logger().info(f"mission duration reached at t = {self.t:.3f} s")
-            self._publish_status()
-            self._end_when_recorded()
-            return
-        self._publish_sensors()
 
     def _publish_measurements(self, state: VehicleState, rec) -> None:
         """The sensor samples of ``[t_n, t_n+1)`` (the step just integrated from ``state``)."""
@@ -810,13 +910,19 @@ class Simulator(Node):
         self.pub[SEA_SURFACE_TOPIC].publish(scene_markers.marker_array(
             [scene_markers.sea_surface_marker(self.sea.elevation, self.sim.x[0:2], self.sim.t)]))
 
-    def _publish_sensors(self) -> None:
-        """Odometry, depth and altitude of the current step."""
-        self._publish_sea_surface()
+    def _publish_odometry(self) -> None:
+        """The odometry of the current step."""
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
-        t = state.t
         self._odom_msg = cv.state_to_odometry(state, frame_id=self.odom_frame, child_frame_id=self.base_link)
         self.pub["/bb2/odom"].publish(self._odom_msg)
+
+    def _publish_sensors(self, *, odometry: bool = True) -> None:
+        """(Odometry,) depth and altitude of the current step, and the free surface when due."""
+        self._publish_sea_surface()
+        if odometry:
+            self._publish_odometry()
+        state = VehicleState.from_vector(self.sim.t, self.sim.x)
+        t = state.t
         self.pub["/bb2/depth"].publish(cv.depth_message(t, state.depth_m, frame_id=self.base_link))
         if self.terrain is not None:
             try:
@@ -841,7 +947,7 @@ class Simulator(Node):
                 "scheduling": self.scheduling if realtime else "executor (lockstep)",
                 "callback_scheduling": self.callback_scheduling,
                 "cpu_dma_latency": self.cpu_latency,
-                "cpus": process_cpus(),
+                "cpus": self._process_cpus or process_cpus(),
                 "stepping_cpus": self.stepping_cpu_affinity if realtime else "",
                 "step_rate_hz": f"{self._rate_measured:.2f}",
                 "real_time_factor": f"{self._rate_measured * self.h:.3f}",
@@ -851,6 +957,9 @@ class Simulator(Node):
         vals.update({k: str(v) for k, v in self.gate.counters.items()})
         vals["command_gap_max_s"] = f"{self.gate.command_gap_max_s:.3f}"
         vals["overruns"] = str(self.overruns)
+        if realtime:  # the steps whose other samples went out on the controllers' answer / after answer_first_s
+            vals["samples_after_answer"] = str(self.samples_after_answer)
+            vals["samples_after_wait"] = str(self.samples_after_wait)
         vals.update(heap.PAUSES.status_values())
         if self.ack.enabled:
             vals["recorder_ack"] = ("given up" if self.ack.given_up else "waiting" if self._held is not None

@@ -128,12 +128,18 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
         # callback_priority, the real-time command reception's, does not apply in lockstep)
         procs.append(spawn_node("bb2_ros.simulator", domain_id, "-p", f"mission_file:={mission}", "-p",
                                 "lockstep_priority:=21", "-p", "callback_priority:=23", "-p", "status_period_s:=0.2"))
-        # a simulator in real time (on the failsafe: nobody answers): its command reception at callback_priority,
-        # its stepping thread at realtime_priority
+        # a simulator in real time (on the failsafe: nobody answers) with a stepping thread of its own
+        # (realtime_loop thread): its command reception at callback_priority, its stepping thread at realtime_priority
+        procs.append(spawn_node("bb2_ros.simulator", domain_id, "-p", f"mission_file:={mission}", "-p",
+                                "time_mode:=realtime", "-p", "callback_priority:=23", "-p", "realtime_priority:=27",
+                                "-p", "hold_cpu_dma_latency:=false", "-p", "duration_s:=1000.0", "-p",
+                                "realtime_loop:=thread", "-p", "status_period_s:=0.2", "-r", "__node:=sim_rt"))
+        # the same stepping on the executor's thread (realtime_loop executor, the default): the callbacks run on the
+        # stepping thread, at realtime_priority; callback_priority holds for the middleware's threads
         procs.append(spawn_node("bb2_ros.simulator", domain_id, "-p", f"mission_file:={mission}", "-p",
                                 "time_mode:=realtime", "-p", "callback_priority:=23", "-p", "realtime_priority:=27",
                                 "-p", "hold_cpu_dma_latency:=false", "-p", "duration_s:=1000.0",
-                                "-p", "status_period_s:=0.2", "-r", "__node:=sim_rt"))
+                                "-p", "status_period_s:=0.2", "-r", "__node:=sim_rx"))
         # composed with the simulator in lockstep (default lockstep_priority 0), a controller's 40 does not apply:
         # the simulator paces the process, and at a real-time priority it would run ahead of outside readers
         procs.append(subprocess.Popen(
@@ -149,9 +155,11 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
             return {st.hardware_id: {kv.key: kv.value for kv in st.values} for a in arrays for st in a.status
                     if st.name in ("bb2/mixer", "bb2/simulator")}
 
-        probe.wait(lambda: {"/mixer_rt", "/mixer_normal", "/simulator", "/sim_rt", "/mixer_c"} <= set(statuses())
-                   and statuses()["/sim_rt"].get("scheduling", "").startswith(("SCHED_FIFO", "normal")), 60,
-                   "the mixers' and the simulators' status", procs[0])
+        probe.wait(lambda: {"/mixer_rt", "/mixer_normal", "/simulator", "/sim_rt", "/sim_rx", "/mixer_c"}
+                   <= set(statuses())
+                   and all(statuses()[n].get("scheduling", "").startswith(("SCHED_FIFO", "normal"))
+                           and "not yet" not in statuses()[n]["callback_scheduling"] for n in ("/sim_rt", "/sim_rx")),
+                   60, "the mixers' and the simulators' status", procs[0])
         rt, normal = statuses()["/mixer_rt"], statuses()["/mixer_normal"]
         assert normal["callback_scheduling"] == "normal", normal
         sim = statuses()["/simulator"]["callback_scheduling"]
@@ -170,6 +178,21 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
             assert sum(v[1:] == (os.SCHED_FIFO, 27) for v in rt_threads.values()) == 1, rt_threads
         else:
             assert sim_rt["callback_scheduling"].startswith("normal (SCHED_FIFO 23 refused: "), sim_rt
+        sim_rx = statuses()["/sim_rx"]
+        rx_pid = procs[4].pid
+        rx_threads = _threads(rx_pid)
+        rx_dds = [v for v in rx_threads.values() if v[0].startswith("dds.")]
+        if _may_use_fifo():
+            assert sim_rx["scheduling"] == "SCHED_FIFO 27", sim_rx
+            assert sim_rx["callback_scheduling"] == (
+                f"SCHED_FIFO 27 (on the simulator's stepping thread: realtime_loop executor; the middleware's threads: "
+                f"SCHED_FIFO 23 ({len(rx_dds) + 1} threads: the executor's and the middleware's))"), sim_rx
+            # the main thread steps and spins, at 27; the middleware's threads at 23
+            assert rx_threads[rx_pid][1:] == (os.SCHED_FIFO, 27), rx_threads
+            # (a thread the executor starts once spinning, e.g. its timers', inherits the stepping thread's policy)
+            assert rx_dds and all(v[1:] == (os.SCHED_FIFO, 23) for v in rx_dds), rx_threads
+        else:
+            assert sim_rx["callback_scheduling"].startswith("normal (SCHED_FIFO 27 refused: "), sim_rx
         composed = statuses()["/mixer_c"]["callback_scheduling"]
         assert composed == "normal (composed with the simulator in lockstep: its lockstep_priority 0 decides)", composed
         assert os.sched_getscheduler(procs[-1].pid) == os.SCHED_OTHER
