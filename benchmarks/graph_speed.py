@@ -274,7 +274,9 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
 
     out = tmp / f"realtime_{layout}"
     rate = 100.0
-    params = {"duration_s": float(args.rt_sim_s), "rate_hz": rate}
+    params = {"duration_s": float(args.rt_sim_s), "rate_hz": rate, "realtime_loop": args.realtime_loop}
+    if args.answer_first_s is not None:
+        params["answer_first_s"] = args.answer_first_s
     controllers = {}
     if args.normal_scheduling:  # what a user without root gets
         params.update(realtime_priority=0, hold_cpu_dma_latency=False)
@@ -333,7 +335,8 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     print(f"  simulator status: overruns {status.get('overruns')}, failsafe steps {status.get('failsafe_steps')}, "
           f"measured step rate {status.get('step_rate_hz')} Hz, stepping thread {status.get('scheduling')}, "
           f"cpu_dma_latency {status.get('cpu_dma_latency')}, CPUs: process {status.get('cpus')}, stepping thread "
-          f"{status.get('stepping_cpus')}")
+          f"{status.get('stepping_cpus')}; loop {args.realtime_loop}, samples after the answer "
+          f"{status.get('samples_after_answer')}, after the wait {status.get('samples_after_wait')}")
     figures["overruns"] = float(status.get("overruns", "nan"))
     figures["jitter_max_ms"] = float(dev_ms.max())
     # the garbage collector's pauses stop every thread of a process (bb2_ros.heap): each process's, from its
@@ -376,6 +379,12 @@ def main() -> int:
     ap.add_argument("--cpus", default=None, metavar="STEPPING:OTHERS",
                     help="real time: the simulator's stepping thread on CPU(s) STEPPING, its other threads and the "
                          "controllers' processes on OTHERS (its stepping_cpus and every loop node's cpus), e.g. 0:1")
+    ap.add_argument("--realtime-loop", choices=("executor", "thread"), default="executor",
+                    help="real time: the simulator steps on its executor's thread (default) or a thread of its own "
+                         "(its realtime_loop)")
+    ap.add_argument("--answer-first-s", type=float, default=None, metavar="S",
+                    help="real time: the simulator's answer_first_s (default: the node's, 0.005; 0 = a step's other "
+                         "samples go out with its state)")
     args = ap.parse_args()
     if args.cpus is not None and args.cpus.count(":") != 1:
         ap.error("--cpus takes STEPPING:OTHERS, e.g. 0:1")
