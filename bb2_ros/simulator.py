@@ -217,8 +217,9 @@ class Simulator(Node):
         self.realtime_loop = require_choice("realtime_loop", P(
             "realtime_loop", "executor", "realtime: executor (the thread that spins the process's executor steps at "
             "the deadlines and runs every callback between them: a controller composed with the simulator answers "
-            "a state on the thread that published it, and a command wakes no second thread) | thread (a stepping "
-            "thread of its own beside the executor's)"), ("executor", "thread"))
+            "a state on the thread that published it, and a command wakes no second thread; ros2 run, the container "
+            "and bb2-launch drive it -- a process of your own spinning this node calls Simulator.drive) | thread (a "
+            "stepping thread of its own beside the executor's)"), ("executor", "thread"))
         self.answer_first_s = L(
             "answer_first_s", 0.005, "realtime: once a step's state (and odometry) went out, publish the step's "
             "other samples (IMU, plane and propeller states, depth, altitude, sensors) only when the controllers' "
@@ -643,7 +644,8 @@ class Simulator(Node):
 
     @property
     def drives_executor(self) -> bool:
-        """Real time with ``realtime_loop`` executor: the process's spinning thread is to call :meth:`drive`."""
+        """Real time with ``realtime_loop`` executor: the process's spinning thread is to call :meth:`drive`
+        (:func:`bb2_ros.node_common.run_nodes` does; a node spun otherwise does not step until someone does)."""
         return self.time_mode is TimeMode.REALTIME and self.realtime_loop == "executor"
 
     def drive(self, executor, keep_going: Callable[[], bool],
