@@ -687,6 +687,12 @@ class BagReader:
 
     def messages(self, topics: Iterable[str] | str | None = None) -> Iterator[tuple[str, int, Any]]:
         """``(topic, log_time_ns, decoded message)`` decoded with mcap_ros2 (dynamic classes)."""
+        for m, msg in self.decoded_messages(topics):
+            yield m.topic, m.log_time_ns, msg
+
+    def decoded_messages(self, topics: Iterable[str] | str | None = None) -> Iterator[tuple[RawMessage, Any]]:
+        """``(raw message, decoded message)``: with the publication time (our recorder's: the DDS source
+        timestamp) and sequence number the decoded message lacks."""
         from mcap_ros2.decoder import DecoderFactory
 
         factory = DecoderFactory()
@@ -699,7 +705,7 @@ class BagReader:
                 if schema is None:
                     raise BagError(f"no schema for type {m.type!r} of topic {m.topic}")
                 dec = decoders[m.type] = factory.decoder_for("cdr", schema)
-            yield m.topic, m.log_time_ns, dec(m.data)
+            yield m, dec(m.data)
 
 
 # ----------------------------------------------------------------------------------------- recovery

@@ -52,17 +52,11 @@ def _last_statuses(bag: Path) -> dict[str, dict[str, str]]:
 
 def _sent(bag: Path, topics: tuple[str, ...]) -> dict[str, dict[int, int]]:
     """topic -> header stamp (ns) -> the DDS source timestamp (ns) of its first publication, from the bag."""
-    from mcap_ros2.decoder import DecoderFactory
-
     from bb2_tools.bagfile import BagReader
 
-    r = BagReader(bag)
-    schemas = {s.name: s for s in r._schemas.values()}
-    factory, decoders = DecoderFactory(), {}
     out: dict[str, dict[int, int]] = defaultdict(dict)
-    for m in r.raw_messages(list(topics)):
-        dec = decoders.get(m.type) or decoders.setdefault(m.type, factory.decoder_for("cdr", schemas[m.type]))
-        st = dec(m.data).header.stamp
+    for m, msg in BagReader(bag).decoded_messages(list(topics)):
+        st = msg.header.stamp
         out[m.topic].setdefault(int(st.sec) * 1_000_000_000 + int(st.nanosec), m.publish_time_ns)
     return out
 
