@@ -391,23 +391,36 @@ def declare_cpus(shell) -> frozenset[int]:
     return shell.cpus
 
 
+_main_thread_cpus_before_pinning: str | None = None
+"""The process's CPUs from before :func:`pin_this_thread` gave the main thread CPUs of its own (the simulator stepping
+on the executor's thread, ``stepping_cpus``), else None."""
+
+
 def process_cpus() -> str:
     """The CPUs this process runs on, as its main thread (the executor's, under :func:`run_nodes`) may: ``"0,1"``
-    (from any thread: the stepping thread has its own, ``stepping_cpus``)."""
-    return format_cpus(os.sched_getaffinity(os.getpid()))
+    (from any thread); once the main thread took CPUs of its own (:func:`pin_this_thread`), the process's as they
+    were."""
+    return _main_thread_cpus_before_pinning or format_cpus(os.sched_getaffinity(os.getpid()))
 
 
-def set_process_cpus(cpus) -> int:
-    """Pin every thread of this process to ``cpus`` (threads started later inherit their starter's CPUs).  Returns
-    the number of threads pinned."""
-    n = 0
+def pin_this_thread(cpus) -> str:
+    """Pin the calling thread to ``cpus`` (a stepping thread's ``stepping_cpus``); returns its CPUs as the OS now
+    says them.  OSError when the OS refuses.  On the main thread the process's CPUs are kept first, for
+    :func:`process_cpus`."""
+    global _main_thread_cpus_before_pinning
+    if threading.current_thread() is threading.main_thread() and _main_thread_cpus_before_pinning is None:
+        _main_thread_cpus_before_pinning = process_cpus()
+    os.sched_setaffinity(0, cpus)
+    return format_cpus(os.sched_getaffinity(0))
+
+
+def set_process_cpus(cpus) -> None:
+    """Pin every thread of this process to ``cpus`` (threads started later inherit their starter's CPUs)."""
     for tid in _thread_ids():
         try:
             os.sched_setaffinity(tid, cpus)
-            n += 1
         except (ProcessLookupError, PermissionError):  # the thread ended; not ours to move
             continue
-    return n
 
 
 def declare_lockstep_priority(shell, *, lockstep: bool) -> int:

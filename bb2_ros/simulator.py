@@ -147,8 +147,8 @@ from bb2_sim.state import VehicleState
 from bb2_ros import heap
 from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, build_piece, check_remaps,
                                  contract_publisher, declare, declare_callback_priority, declare_lockstep_priority,
-                                 format_cpus, mission_only, node_options, parse_cpus, process_cpus,
-                                 require_choice, require_positive, run_node)
+                                 format_cpus, mission_only, node_options, parse_cpus, pin_this_thread,
+                                 process_cpus, require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
               "/bb2/planes/state", "/bb2/propeller/state", "/bb2/sea", "/bb2/status", "/diagnostics",
@@ -226,7 +226,6 @@ class Simulator(Node):
             "plane command to it has come, or after this many wall s (at most half a period): until then they take "
             "neither the interpreter lock (composed) nor a CPU (one process per node) from the controllers; "
             "0 = at once", lambda v: setattr(self, "answer_first_s", v), positive("answer_first_s", zero=True))
-        self._process_cpus = ""  # realtime_loop executor: the process's CPUs before its stepping thread was pinned
         self._on_scheduling: Callable[[str], None] | None = None  # drive(): the executor's thread's scheduling
         self._answered = threading.Event()  # real time: the plane command to the state of the current step came
         self._deferred: Callable[[], None] | None = None  # real time: the step's samples held for the answer
@@ -705,11 +704,8 @@ class Simulator(Node):
                 continue
             if not pinned:  # now: the process's threads were pinned (its cpus) before it began to spin
                 pinned = True
-                if self.drives_executor:  # the executor's thread: the process's CPUs are said as they were
-                    self._process_cpus = process_cpus()
-                try:
-                    os.sched_setaffinity(0, self.stepping_cpus)
-                    self.stepping_cpu_affinity = format_cpus(os.sched_getaffinity(0))
+                try:  # (on the executor's thread the process's CPUs are still said as they were: process_cpus)
+                    self.stepping_cpu_affinity = pin_this_thread(self.stepping_cpus)
                     self.get_logger().info(f"stepping thread on CPU(s) {self.stepping_cpu_affinity}")
                 except OSError as exc:
                     self.stepping_cpu_affinity = f"the process's (stepping_cpus refused: {exc})"
@@ -725,7 +721,6 @@ class Simulator(Node):
             now = time.monotonic()
             delay = self._next_tick - now
             if delay > 0:
-                pause(delay)
                 while (left := self._next_tick - time.monotonic()) > 0 and not self._rt_stop.is_set() \
                         and keep_going():
                     pause(left)  # (a spin may end early: a callback ran)
@@ -912,18 +907,18 @@ class Simulator(Node):
         self.pub[SEA_SURFACE_TOPIC].publish(scene_markers.marker_array(
             [scene_markers.sea_surface_marker(self.sea.elevation, self.sim.x[0:2], self.sim.t)]))
 
-    def _publish_odometry(self) -> None:
-        """The odometry of the current step."""
-        state = VehicleState.from_vector(self.sim.t, self.sim.x)
+    def _publish_odometry(self, state: VehicleState | None = None) -> None:
+        """The odometry of the current step (``state``: its VehicleState, if made already)."""
+        state = state or VehicleState.from_vector(self.sim.t, self.sim.x)
         self._odom_msg = cv.state_to_odometry(state, frame_id=self.odom_frame, child_frame_id=self.base_link)
         self.pub["/bb2/odom"].publish(self._odom_msg)
 
     def _publish_sensors(self, *, odometry: bool = True) -> None:
         """(Odometry,) depth and altitude of the current step, and the free surface when due."""
         self._publish_sea_surface()
-        if odometry:
-            self._publish_odometry()
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
+        if odometry:
+            self._publish_odometry(state)
         t = state.t
         self.pub["/bb2/depth"].publish(cv.depth_message(t, state.depth_m, frame_id=self.base_link))
         if self.terrain is not None:
@@ -949,7 +944,7 @@ class Simulator(Node):
                 "scheduling": self.scheduling if realtime else "executor (lockstep)",
                 "callback_scheduling": self.callback_scheduling,
                 "cpu_dma_latency": self.cpu_latency,
-                "cpus": self._process_cpus or process_cpus(),
+                "cpus": process_cpus(),
                 "stepping_cpus": self.stepping_cpu_affinity if realtime else "",
                 "step_rate_hz": f"{self._rate_measured:.2f}",
                 "real_time_factor": f"{self._rate_measured * self.h:.3f}",

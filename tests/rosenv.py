@@ -136,6 +136,14 @@ def launch_with_fault(mission: Path, out: Path, *args: str, fault, min_sim_s: fl
     return p.returncode, seen + err
 
 
+def last_statuses(bag: Path) -> dict[str, dict[str, str]]:
+    """Each node's last ``/bb2/status`` in a bag: status name -> its key/values."""
+    from bb2_tools.bagfile import BagReader
+
+    return {st.name: {kv.key: kv.value for kv in st.values}
+            for _t, _lt, msg in BagReader(bag).messages("/bb2/status") for st in msg.status}
+
+
 def library_trajectory(mission_file: Path):
     """``[t, x(12)]`` of every step of the library mission runner on ``mission_file`` (what the lockstep graph must
     equal), as an array."""

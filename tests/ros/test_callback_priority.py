@@ -266,3 +266,29 @@ def test_the_example_external_autopilot_puts_its_callbacks_and_the_middleware_at
             p.kill()
             p.wait()
     assert p.returncode == 0, "".join(lines) + (rest if p.returncode is not None else "")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or not {0, 1} <= os.sched_getaffinity(0),
+                    reason="thread CPUs: Linux, CPUs 0 and 1")
+def test_a_main_thread_pinned_apart_still_says_the_process_cpus():
+    """The simulator stepping on the executor's (main) thread takes its stepping_cpus there: every node of the
+    process still says the process's CPUs in its status (process_cpus), not the stepping thread's; a stepping thread
+    of its own changes nothing the main thread says."""
+    child = textwrap.dedent(f"""
+        import json, os, sys, threading
+        sys.path.insert(0, {str(REPO)!r})
+        from bb2_ros.node_common import pin_this_thread, process_cpus, set_process_cpus
+        set_process_cpus({{0, 1}})
+        out = {{}}
+        t = threading.Thread(target=lambda: out.update(thread=pin_this_thread({{1}})))
+        t.start(); t.join()
+        out["after_thread"] = process_cpus()
+        out["main"] = pin_this_thread({{0}})
+        out["after_main"] = process_cpus()
+        out["main_affinity"] = sorted(os.sched_getaffinity(0))
+        print(json.dumps(out))
+    """)
+    r = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    got = json.loads(r.stdout)
+    assert got == {"thread": "1", "after_thread": "0,1", "main": "0", "after_main": "0,1", "main_affinity": [0]}, got

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rosenv import launch_with_fault, library_trajectory, node_pid, ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import (last_statuses, launch_with_fault, library_trajectory, node_pid,  # noqa: E402
+                    ros_env)  # (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable
@@ -82,15 +83,8 @@ def test_bb2_launch_refuses_a_restart_of_a_composed_simulator(tmp_path):
 
 
 # ------------------------------------------------------------------------------------ the graph, composed
-def _last_statuses(bag: Path) -> dict[str, dict[str, str]]:
-    from bb2_tools.bagfile import BagReader
-
-    return {st.name: {kv.key: kv.value for kv in st.values}
-            for _t, _lt, msg in BagReader(bag).messages("/bb2/status") for st in msg.status}
-
-
 def _status_names(bag: Path) -> set[str]:
-    return set(_last_statuses(bag))
+    return set(last_statuses(bag))
 
 
 @pytest.fixture(scope="module")
@@ -144,7 +138,7 @@ def test_the_graph_composed_or_not_equals_the_library_runner(tmp_path, canyon_20
         <= _status_names(out), _status_names(out)
     # every node process settled its start-up heap before spinning (bb2_ros.heap): frozen, and the collections
     # since then measured (composed nodes share one collector and say the same)
-    for name, st in _last_statuses(out).items():
+    for name, st in last_statuses(out).items():
         assert int(st["gc_frozen_objects"]) > 50_000 and int(st["gc_collections"]) >= 0 \
             and float(st["gc_pause_max_ms"]) >= 0.0, (name, st)
     assert "recording complete: no gaps" in r.stderr, r.stderr[-3000:]

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from rosenv import ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import last_statuses, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PY = sys.executable
@@ -41,13 +41,6 @@ def _fly(tmp_path: Path, name: str, *launch_args: str, **sim_params) -> tuple[Pa
                        capture_output=True, text=True, env=ros_env(), timeout=400, cwd=tmp_path)
     assert r.returncode == 0, r.stderr[-4000:]
     return out, r.stderr
-
-
-def _last_statuses(bag: Path) -> dict[str, dict[str, str]]:
-    from bb2_tools.bagfile import BagReader
-
-    return {st.name: {kv.key: kv.value for kv in st.values}
-            for _t, _lt, msg in BagReader(bag).messages("/bb2/status") for st in msg.status}
 
 
 def _sent(bag: Path, topics: tuple[str, ...]) -> dict[str, dict[int, int]]:
@@ -75,7 +68,7 @@ def _samples_after_the_answer(bag: Path) -> tuple[int, int]:
 def test_composed_the_controllers_answer_on_the_stepping_thread_before_the_samples_go_out(tmp_path):
     pytest.importorskip("rclpy")
     out, err = _fly(tmp_path, "composed", "--compose")
-    st = _last_statuses(out)
+    st = last_statuses(out)
     sim = st["bb2/simulator"]
     steps = int(sim["step"])
     assert steps == round(SIM_S / 0.05), sim
@@ -95,7 +88,7 @@ def test_composed_the_controllers_answer_on_the_stepping_thread_before_the_sampl
 def test_one_process_per_node_the_samples_wait_for_the_answer_or_go_at_once(tmp_path, answer_first_s):
     pytest.importorskip("rclpy")
     out, err = _fly(tmp_path, f"alone_{answer_first_s:g}", answer_first_s=answer_first_s)
-    sim = _last_statuses(out)["bb2/simulator"]
+    sim = last_statuses(out)["bb2/simulator"]
     steps = int(sim["step"])
     assert steps == round(SIM_S / 0.05), sim
     after, waited = int(sim["samples_after_answer"]), int(sim["samples_after_wait"])
@@ -116,7 +109,7 @@ def test_a_stepping_thread_of_its_own_flies_the_same_graph(tmp_path):
     statuses say where the callbacks run."""
     pytest.importorskip("rclpy")
     out, err = _fly(tmp_path, "thread", "--compose", realtime_loop="thread")
-    st = _last_statuses(out)
+    st = last_statuses(out)
     sim = st["bb2/simulator"]
     assert int(sim["step"]) == round(SIM_S / 0.05) and sim["failsafe_steps_after_takeover"] == "0", sim
     assert int(sim["samples_after_answer"]) > 0, sim
