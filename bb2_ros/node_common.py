@@ -504,19 +504,20 @@ def _error(name: str, message: str) -> None:
     print(f"{name}: error: {message}", file=sys.stderr, flush=True)
 
 
-def make_executor():
+def make_executor(context=None):
     """rclpy's EventsExecutor (C++ event queue, several times less overhead per callback than the
-    SingleThreadedExecutor; rclpy.experimental in Jazzy) unless ``BB2_EXECUTOR=single``."""
+    SingleThreadedExecutor; rclpy.experimental in Jazzy) unless ``BB2_EXECUTOR=single``; on ``context``
+    (default: rclpy's global one)."""
     from rclpy.executors import SingleThreadedExecutor
 
     if os.environ.get("BB2_EXECUTOR", "events") != "single":
         try:
             from rclpy.experimental import EventsExecutor
 
-            return EventsExecutor()
+            return EventsExecutor(context=context)
         except ImportError:  # pragma: no cover - older rclpy
             pass
-    return SingleThreadedExecutor()
+    return SingleThreadedExecutor(context=context)
 
 
 def _profiler():

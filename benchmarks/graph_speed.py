@@ -132,11 +132,12 @@ the controllers composed with the simulator alone (its real-time thread keeps it
 
 
 def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeout_s: float,
-                   probe: bool = False, groups=(), node_params: dict | None = None
+                   probe=False, groups=(), node_params: dict | None = None
                    ) -> tuple[L.RunResult, float, Probe | None]:
     """Fly ``mission`` through the whole graph (recorder included); return the run result, the
-    wall time from the first /clock to the end, and the probe (if asked for, closed).  ``node_params``: other
-    nodes' parameters, ``{node: {name: value}}``."""
+    wall time from the first /clock to the end, and the probe (if asked for, closed).  ``probe``: True for a
+    :class:`Probe`, or a factory of the graph's domain id giving any object with ``close()``.  ``node_params``:
+    other nodes' parameters, ``{node: {name: value}}``."""
     os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
     os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
     out.mkdir(parents=True, exist_ok=True)
@@ -148,7 +149,7 @@ def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeou
                PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     specs = L.graph_specs(mission, out, mode=mode, params=params, monitor=monitor, groups=groups)
     sup = Supervisor(specs, out / "logs", env=env)
-    pr = Probe(monitor.domain_id) if probe else None
+    pr = (probe if callable(probe) else Probe)(monitor.domain_id) if probe else None
     try:
         res = L.run_graph(sup, monitor, first=[s.name for s in specs if s.ready is not None],
                           timeout_s=timeout_s, status_period_s=10.0)
