@@ -753,6 +753,9 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
         executor = make_executor()
         for shell in shells:
             executor.add_node(_node_of(shell))
+        if (shared := share_sim_clock([_node_of(sh) for sh in shells])) > 1:
+            _node_of(shells[0]).get_logger().info(f"{shared} nodes of this process on sim time take /clock through "
+                                                  "one subscription")
         _apply_callback_priority(shells)
         cpus = frozenset().union(*(getattr(sh, "cpus", frozenset()) for sh in shells))
         if cpus:  # before the simulator's stepping thread takes its own (stepping_cpus) once the clock may start
@@ -792,6 +795,39 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
             rclpy.shutdown()
         restore_signals(previous, stop)
     return code
+
+
+USE_SIM_TIME_FIXED = ("use_sim_time is fixed while this process runs: its nodes on sim time share one /clock "
+                      "subscription (composed); restart the process with the value you want")
+
+
+def _refuse_use_sim_time_change(params) -> Any:
+    from rcl_interfaces.msg import SetParametersResult
+
+    for p in params:
+        if p.name == "use_sim_time" and p.value is not True:
+            return SetParametersResult(successful=False, reason=USE_SIM_TIME_FIXED)
+    return SetParametersResult(successful=True)
+
+
+def share_sim_clock(nodes: Sequence[Any]) -> int:
+    """Let the nodes of one process that run on sim time take ``/clock`` through one subscription: the first one's
+    time source (rclpy's ``TimeSource``) drives every other one's clock (``attach_clock``), and the others' own
+    ``/clock`` subscriptions are removed -- one delivery of each clock message per process instead of one per
+    node, the same time in every node's clock. ``use_sim_time`` is then fixed for the process's life (a change is
+    refused with the reason: a follower's clock would otherwise go on or off with the first node's). Returns the
+    number of nodes sharing (0: fewer than two on sim time, or an rclpy without the time source this relies on,
+    which then keeps one subscription per node)."""
+    sim = [n for n in nodes if n.get_parameter("use_sim_time").value is True]
+    sources = [getattr(n, "_time_source", None) for n in sim]
+    if len(sim) < 2 or not all(hasattr(ts, "attach_clock") and hasattr(ts, "detach_node") for ts in sources):
+        return 0
+    for node, ts in zip(sim[1:], sources[1:]):
+        ts.detach_node()                          # its /clock subscription goes; its clock stays on ROS time
+        sources[0].attach_clock(node.get_clock())
+    for node in sim:
+        node.add_on_set_parameters_callback(_refuse_use_sim_time_change)  # runs before the time source's own
+    return len(sim)
 
 
 def _apply_callback_priority(shells: Sequence[Any]) -> None:

@@ -59,20 +59,26 @@ def _init(domain_id: int, name: str):
 
 
 class SubscriptionWatcher:
-    """While a graph flies: which nodes subscribe to each topic (the largest set seen, polled every 0.5 s)."""
+    """While a graph flies: which nodes subscribe to each topic, polled every 0.5 s; :attr:`subscribers` is the
+    poll in the middle of those that saw the simulator (not the start-up, when a composed process still has its
+    followers' /clock subscriptions, nor the shutdown)."""
 
     def __init__(self, domain_id: int):
         self.ctx, self.node = _init(domain_id, "bb2_floor_watcher")
-        self.subscribers: dict[str, set[str]] = {}
+        self._polls: list[dict[str, set[str]]] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._poll, daemon=True)
         self._thread.start()
 
     def _poll(self) -> None:
         while not self._stop.wait(0.5):
-            for name, _types in self.node.get_topic_names_and_types():
-                subs = {i.node_name for i in self.node.get_subscriptions_info_by_topic(name)}
-                self.subscribers.setdefault(name, set()).update(subs)
+            if "simulator" in self.node.get_node_names():
+                self._polls.append({name: {i.node_name for i in self.node.get_subscriptions_info_by_topic(name)}
+                                    for name, _types in self.node.get_topic_names_and_types()})
+
+    @property
+    def subscribers(self) -> dict[str, set[str]]:
+        return self._polls[len(self._polls) // 2] if self._polls else {}
 
     def close(self) -> None:
         import rclpy

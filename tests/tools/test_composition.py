@@ -127,8 +127,12 @@ def test_the_graph_composed_or_not_equals_the_library_runner(tmp_path, canyon_20
             in r.stderr
         logs = {p.name for p in (out / "logs").glob("*.log")}
         assert {"recorder.log", "container.log"} <= logs and "simulator.log" not in logs, logs
+        # the four nodes on sim time (not the simulator, which publishes /clock) take it through one subscription
+        assert "4 nodes of this process on sim time take /clock through one subscription" \
+            in (out / "logs" / "container.log").read_text()
     elif layout == "control loop composed":
-        assert (out / "logs" / "path_following+l1_autopilot+mixer.log").is_file()
+        log = out / "logs" / "path_following+l1_autopilot+mixer.log"
+        assert "3 nodes of this process on sim time take /clock through one subscription" in log.read_text()
     traj = np.loadtxt(csv_file, delimiter=",", skiprows=1)
     assert traj.shape == ref.shape == (int(round(DURATION_S / H)) + 1, 13)
     np.testing.assert_array_equal(traj[:, 0], ref[:, 0])
