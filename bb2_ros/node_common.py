@@ -811,23 +811,29 @@ def _refuse_use_sim_time_change(params) -> Any:
 
 
 def share_sim_clock(nodes: Sequence[Any]) -> int:
-    """Let the nodes of one process that run on sim time take ``/clock`` through one subscription: the first one's
-    time source (rclpy's ``TimeSource``) drives every other one's clock (``attach_clock``), and the others' own
-    ``/clock`` subscriptions are removed -- one delivery of each clock message per process instead of one per
-    node, the same time in every node's clock. ``use_sim_time`` is then fixed for the process's life (a change is
-    refused with the reason: a follower's clock would otherwise go on or off with the first node's). Returns the
-    number of nodes sharing (0: fewer than two on sim time, or an rclpy without the time source this relies on,
-    which then keeps one subscription per node)."""
-    sim = [n for n in nodes if n.get_parameter("use_sim_time").value is True]
-    sources = [getattr(n, "_time_source", None) for n in sim]
-    if len(sim) < 2 or not all(hasattr(ts, "attach_clock") and hasattr(ts, "detach_node") for ts in sources):
+    """Let the nodes of one process that run on sim time take their clock topic through one subscription: of the
+    nodes whose ``/clock`` resolves to the same topic (their remaps), the first one's time source (rclpy's
+    ``TimeSource``) drives every other one's clock (``attach_clock``), and the others' own subscriptions are
+    removed -- one delivery of each clock message per process instead of one per node, the same time in every
+    node's clock. ``use_sim_time`` is then fixed for the process's life on the nodes sharing (a change is refused
+    with the reason: a follower's clock would otherwise go on or off with the first node's). Returns the number of
+    nodes sharing (0: no two on sim time with the same clock topic, or an rclpy without the time source this relies
+    on, which then keeps one subscription per node)."""
+    groups: dict[str, list[Any]] = {}
+    for n in nodes:
+        if n.get_parameter("use_sim_time").value is True:
+            groups.setdefault(n.resolve_topic_name("/clock"), []).append(n)
+    sharing = [g for g in groups.values() if len(g) > 1]
+    sources = {id(n): getattr(n, "_time_source", None) for g in sharing for n in g}
+    if not all(hasattr(ts, "attach_clock") and hasattr(ts, "detach_node") for ts in sources.values()):
         return 0
-    for node, ts in zip(sim[1:], sources[1:]):
-        ts.detach_node()                          # its /clock subscription goes; its clock stays on ROS time
-        sources[0].attach_clock(node.get_clock())
-    for node in sim:
-        node.add_on_set_parameters_callback(_refuse_use_sim_time_change)  # runs before the time source's own
-    return len(sim)
+    for lead, *followers in sharing:
+        for node in followers:
+            sources[id(node)].detach_node()   # its clock subscription goes; its clock stays on ROS time
+            sources[id(lead)].attach_clock(node.get_clock())
+        for node in (lead, *followers):
+            node.add_on_set_parameters_callback(_refuse_use_sim_time_change)  # runs before the time source's own
+    return sum(len(g) for g in sharing)
 
 
 def _apply_callback_priority(shells: Sequence[Any]) -> None:

@@ -82,12 +82,26 @@ def test_nodes_on_sim_time_share_one_clock_subscription(ros_context):
         n.destroy_node()
 
 
-def test_one_node_on_sim_time_keeps_its_own_subscription(ros_context):
-    from bb2_ros.node_common import share_sim_clock
+def test_only_nodes_with_the_same_clock_topic_share(ros_context):
+    """A node alone on sim time, or alone on its clock topic (remapped: another boat's clock), keeps its own."""
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from bb2_ros.node_common import make_executor, share_sim_clock
 
     only = _node(ros_context, "only", True)
     wall = _node(ros_context, "wall", False)
     assert share_sim_clock([only, wall]) == 0
     assert only.get_subscriptions_info_by_topic("/clock")  # untouched
-    only.destroy_node()
-    wall.destroy_node()
+    boat2 = [rclpy.create_node(n, context=ros_context, cli_args=["--ros-args", "-r", "/clock:=/boat2/clock"],
+                               use_global_arguments=False, start_parameter_services=False, enable_rosout=False,
+                               parameter_overrides=[Parameter("use_sim_time", value=True)]) for n in ("b2a", "b2b")]
+    ex = make_executor(ros_context)
+    for n in (only, wall, *boat2):
+        ex.add_node(n)
+    assert share_sim_clock([only, *boat2]) == 2  # the two on /boat2/clock; `only` keeps /clock to itself
+    assert _wait(lambda: [i.node_name for i in wall.get_subscriptions_info_by_topic("/boat2/clock")] == ["b2a"], ex)
+    assert [i.node_name for i in wall.get_subscriptions_info_by_topic("/clock")] == ["only"]
+    assert only.set_parameters([Parameter("use_sim_time", value=False)])[0].successful  # not sharing: still live
+    for n in (only, wall, *boat2):
+        n.destroy_node()
