@@ -159,6 +159,29 @@ def test_imu_specific_force_includes_gravity_and_marks_unknown_orientation():
     assert conv.imu_to_arrays(unknown)["q_enu_flu"] is None
 
 
+def test_refilled_odometry_and_imu_equal_fresh_messages():
+    """The simulator refills one Odometry and one Imu each step (conversions.fill_*): every field is rewritten, so
+    a refilled message equals a fresh one whatever it held before (another state, frame, variance, an unknown
+    orientation)."""
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import Imu
+
+    odom, imu = Odometry(), Imu()
+    for k in range(6):
+        s = random_state()
+        kw = {"frame_id": f"boat{k}/odom", "child_frame_id": f"boat{k}/base_link"}
+        if k % 2:
+            kw.update(pose_variance=1e-3 * k, twist_variance=2e-3 * k)
+        assert conv.fill_odometry(odom, s, **kw) is odom
+        assert odom == conv.state_to_odometry(s, **kw) and odom.pose.pose.position.x != 0.0
+        f = RNG.uniform(-10.0, 10.0, 3)
+        ikw = {"frame_id": f"boat{k}/base_link", "orientation_known": k != 2,
+               "variances": {"orientation_variance_rad2": 1e-4 * (k + 1)} if k % 3 == 0 else None}
+        assert conv.fill_imu(imu, s, f, **ikw) is imu
+        assert imu == conv.imu_message(s, f, **ikw), k
+    assert imu.orientation_covariance[0] > 0.0  # restored after the unknown orientation of k = 2
+
+
 def test_depth_altitude_round_trips():
     for depth in (0.0, 12.5, 87.25, 300.0):
         msg = conv.depth_message(3.0, depth)
