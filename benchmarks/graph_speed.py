@@ -161,18 +161,6 @@ def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeou
     return res, (res.stepping_wall_s or float("nan")), pr
 
 
-def last_simulator_status(reader) -> dict[str, str]:
-    """The simulator's status with the highest step count in the bag."""
-    last: dict[str, str] = {}
-    for _topic, _t, msg in reader.messages("/bb2/status"):
-        for st in msg.status:
-            if "simulator" in st.name:
-                vals = {kv.key: kv.value for kv in st.values}
-                if int(vals.get("step", -1)) >= int(last.get("step", -1)):
-                    last = vals
-    return last
-
-
 def last_statuses(reader) -> dict[str, dict[str, str]]:
     """Each node's last status in the bag (by status name)."""
     last: dict[str, dict[str, str]] = {}
@@ -180,6 +168,11 @@ def last_statuses(reader) -> dict[str, dict[str, str]]:
         for st in msg.status:
             last[st.name] = {kv.key: kv.value for kv in st.values}
     return last
+
+
+def last_simulator_status(reader) -> dict[str, str]:
+    """The simulator's last status in the bag (its statuses come in step order: one writer, one reader)."""
+    return next((vals for name, vals in last_statuses(reader).items() if "simulator" in name), {})
 
 
 def stamps_and_pub_times(reader, topic: str) -> list[tuple[int, int]]:
