@@ -99,6 +99,14 @@ def _fill_header(header, t: float, frame_id: str) -> None:
     header.frame_id = frame_id
 
 
+def _stamped(cls, t: float, frame_id: str):
+    """A new stamped message ``cls()`` with its header written: rclpy builds every nested default of a message before
+    the keyword values given, so ``cls(header=...)`` would build a header twice."""
+    msg = cls()
+    _fill_header(msg.header, t, frame_id)
+    return msg
+
+
 def clock_message(t: float):
     """``rosgraph_msgs/Clock`` at ``t`` seconds."""
     from rosgraph_msgs.msg import Clock
@@ -291,8 +299,10 @@ def depth_message(t: float, depth_m: float, *, frame_id: str = FRAME_BASE_LINK):
 
     if not math.isfinite(depth_m):
         raise ConversionError(f"depth must be finite, got {depth_m!r}")
-    return FluidPressure(header=_header(t, frame_id), fluid_pressure=depth_to_pressure(depth_m),
-                         variance=float(sensor_model()["depth_sensor"]["variance_pa2"]))
+    msg = _stamped(FluidPressure, t, frame_id)
+    msg.fluid_pressure = depth_to_pressure(depth_m)
+    msg.variance = float(sensor_model()["depth_sensor"]["variance_pa2"])
+    return msg
 
 
 def depth_from_message(msg) -> float:
@@ -311,9 +321,11 @@ def altitude_message(t: float, altitude_m: float, *, frame_id: str = FRAME_BASE_
     r = float(altitude_m)
     if not math.isfinite(r) or r > m["max_range_m"]:
         r = math.inf
-    return Range(header=_header(t, frame_id), radiation_type=int(m["radiation_type"]),
-                 field_of_view=float(m["field_of_view_rad"]), min_range=float(m["min_range_m"]),
-                 max_range=float(m["max_range_m"]), range=r, variance=float(m["variance_m2"]))
+    msg = _stamped(Range, t, frame_id)
+    msg.radiation_type, msg.field_of_view = int(m["radiation_type"]), float(m["field_of_view_rad"])
+    msg.min_range, msg.max_range = float(m["min_range_m"]), float(m["max_range_m"])
+    msg.range, msg.variance = r, float(m["variance_m2"])
+    return msg
 
 
 def altitude_from_message(msg) -> float:
@@ -326,7 +338,8 @@ def _joint_state(t: float, names: Sequence[str], *, position=None, velocity=None
                  frame_id: str = FRAME_BASE_LINK):
     from sensor_msgs.msg import JointState
 
-    msg = JointState(header=_header(t, frame_id), name=list(names))
+    msg = _stamped(JointState, t, frame_id)
+    msg.name = list(names)
     if position is not None:
         msg.position = [float(x) for x in position]
     if velocity is not None:
@@ -397,10 +410,12 @@ def rate_command_message(t: float, q_c_native: float, r_c_native: float, *, fram
     The native (ROM) commands q_c (bow up > 0) and r_c (bow to port > 0) map to FLU as
     ``(x, y, z) = (0, -q_c, r_c)``.
     """
-    from geometry_msgs.msg import Vector3, Vector3Stamped
+    from geometry_msgs.msg import Vector3Stamped
 
     w = frames.body_native_to_flu(np.array([0.0, float(q_c_native), float(r_c_native)]))
-    return Vector3Stamped(header=_header(t, frame_id), vector=Vector3(x=w[0], y=w[1], z=w[2]))
+    msg = _stamped(Vector3Stamped, t, frame_id)
+    msg.vector.x, msg.vector.y, msg.vector.z = w[0], w[1], w[2]
+    return msg
 
 
 def rate_command_from_message(msg, *, frame_id: str = FRAME_BASE_LINK) -> tuple[float, float]:
@@ -414,10 +429,12 @@ def rate_command_from_message(msg, *, frame_id: str = FRAME_BASE_LINK) -> tuple[
 def path_error_message(t: float, e_path, *, frame_id: str = FRAME_PATH):
     """``geometry_msgs/Vector3Stamped`` of the path error (m) in the path frame ``frame_id`` (x along, y left, z up;
     the vehicle's own: ``boat1/path_frenet`` for a boat in ``/boat1``)."""
-    from geometry_msgs.msg import Vector3, Vector3Stamped
+    from geometry_msgs.msg import Vector3Stamped
 
     e = _vec3(e_path)
-    return Vector3Stamped(header=_header(t, frame_id), vector=Vector3(x=e[0], y=e[1], z=e[2]))
+    msg = _stamped(Vector3Stamped, t, frame_id)
+    msg.vector.x, msg.vector.y, msg.vector.z = e[0], e[1], e[2]
+    return msg
 
 
 def path_error_from_message(msg) -> np.ndarray:
