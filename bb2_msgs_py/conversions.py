@@ -52,14 +52,20 @@ def seconds_to_ns(t: float) -> int:
     return int(round(t * 1e9))
 
 
+def _stamp_parts(t: float) -> tuple[int, int]:
+    """(sec, nanosec) of a stamp of ``t`` seconds (t >= 0)."""
+    ns = seconds_to_ns(t)
+    if ns < 0:
+        raise ConversionError(f"stamps must be >= 0 s, got {t!r}")
+    return divmod(ns, 1_000_000_000)
+
+
 def stamp(t: float):
     """``builtin_interfaces/Time`` of ``t`` seconds (t >= 0)."""
     from builtin_interfaces.msg import Time
 
-    ns = seconds_to_ns(t)
-    if ns < 0:
-        raise ConversionError(f"stamps must be >= 0 s, got {t!r}")
-    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+    sec, nanosec = _stamp_parts(t)
+    return Time(sec=sec, nanosec=nanosec)
 
 
 def stamp_to_seconds(st) -> float:
@@ -92,10 +98,7 @@ def _header(t: float, frame_id: str):
 
 def _fill_header(header, t: float, frame_id: str) -> None:
     """Write :func:`_header`'s stamp and frame into an existing ``std_msgs/Header``."""
-    ns = seconds_to_ns(t)
-    if ns < 0:
-        raise ConversionError(f"stamps must be >= 0 s, got {t!r}")
-    header.stamp.sec, header.stamp.nanosec = divmod(ns, 1_000_000_000)
+    header.stamp.sec, header.stamp.nanosec = _stamp_parts(t)
     header.frame_id = frame_id
 
 

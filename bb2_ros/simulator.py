@@ -837,21 +837,20 @@ class Simulator(Node):
             self._publish_measurements(state, rec)
         if finished:
             self._publish_samples(state, rec)
-            self._publish_trigger(clock=False)
-            self._publish_sensors()
+            self._publish_sensors(self._publish_trigger(clock=False))
             self.finished = True
             self.get_logger().info(f"mission duration reached at t = {self.t:.3f} s")
             self._publish_status()
             self._end_when_recorded()
             return
         self._answered.clear()
-        self._publish_trigger(clock=False)  # first: the controllers work on step n+1 while the samples go out
+        now = self._publish_trigger(clock=False)  # first: the controllers work on step n+1 while the samples go out
         if self.time_mode is TimeMode.REALTIME and self.answer_first_s > 0:
-            self._publish_odometry()  # (a controller on state_source odometry answers it)
-            self._deferred = lambda: (self._publish_samples(state, rec), self._publish_sensors(odometry=False))
+            self._publish_odometry(now)  # (a controller on state_source odometry answers it)
+            self._deferred = lambda: (self._publish_samples(state, rec), self._publish_sensors(now, odometry=False))
             return
         self._publish_samples(state, rec)
-        self._publish_sensors()
+        self._publish_sensors(now)
 
     def _publish_samples(self, state: VehicleState, rec) -> None:
         """The samples of the step just integrated from ``state`` (``[t_n, t_n+1)``): IMU, plane and propeller
@@ -877,11 +876,10 @@ class Simulator(Node):
                 self.pub[name].publish(msg)
 
     def _publish_state(self) -> None:
-        self._publish_trigger()
-        self._publish_sensors()
+        self._publish_sensors(self._publish_trigger())
 
-    def _publish_trigger(self, *, clock: bool = True) -> None:
-        """(/clock and) the exact state of the current step (what the controllers answer)."""
+    def _publish_trigger(self, *, clock: bool = True) -> VehicleState:
+        """(/clock and) the exact state of the current step (what the controllers answer); returns it."""
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
         if self._csv:
             self._csv.writerow([repr(float(state.t))] + ["%.17g" % v for v in self.sim.x])
@@ -894,6 +892,7 @@ class Simulator(Node):
             self.pub[NAV_STATE_TOPIC].publish(self._nav_msg)
         self.pub["/bb2/state_native"].publish(self._state_native_msg)
         self.gate.state_sent(time.monotonic())
+        return state
 
     def _publish_scene(self) -> None:
         """The latched scene: the hull (base_link), the terrain and, in a calm sea, the plane z = 0 (map)."""
@@ -920,10 +919,11 @@ class Simulator(Node):
                                           child_frame_id=self.base_link)
         self.pub["/bb2/odom"].publish(self._odom_msg)
 
-    def _publish_sensors(self, *, odometry: bool = True) -> None:
-        """(Odometry,) depth and altitude of the current step, and the free surface when due."""
+    def _publish_sensors(self, state: VehicleState | None = None, *, odometry: bool = True) -> None:
+        """(Odometry,) depth and altitude of the current step (``state``: its VehicleState, if made already), and
+        the free surface when due."""
         self._publish_sea_surface()
-        state = VehicleState.from_vector(self.sim.t, self.sim.x)
+        state = state or VehicleState.from_vector(self.sim.t, self.sim.x)
         if odometry:
             self._publish_odometry(state)
         t = state.t
