@@ -41,21 +41,11 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from graph_speed import own_node  # noqa: E402  (benchmarks/graph_speed.py)
+
 GRAPH_NODES = ("simulator", "planner", "path_following", "l1_autopilot", "mixer")
 PING, PONG = "/bb2_floor/ping", "/bb2_floor/pong"
 STATE_TYPE = "std_msgs/msg/Float64MultiArray"
-
-
-def _init(domain_id: int, name: str):
-    """(context, node) of their own on ``domain_id``."""
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.signals import SignalHandlerOptions
-
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node(name, context=ctx, enable_rosout=False, start_parameter_services=False)
-    return ctx, node
 
 
 class SubscriptionWatcher:
@@ -64,7 +54,7 @@ class SubscriptionWatcher:
     followers' /clock subscriptions, nor the shutdown)."""
 
     def __init__(self, domain_id: int):
-        self.ctx, self.node = _init(domain_id, "bb2_floor_watcher")
+        self.ctx, self.node = own_node(domain_id, "bb2_floor_watcher")
         self._polls: list[dict[str, set[str]]] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._poll, daemon=True)
@@ -112,7 +102,7 @@ def role_reader(domain_id: int, topics: list[tuple[str, str]]) -> None:
     closes."""
     from bb2_msgs_py.contract import message_class, qos_profile
 
-    ctx, node = _init(domain_id, "bb2_floor_reader")
+    ctx, node = own_node(domain_id, "bb2_floor_reader")
     for name, type_name in topics:
         q = qos_profile(name)  # the writer's: reliable, as the recorder reads
         node.create_subscription(message_class(type_name), name, lambda _m: None, q, raw=True)
@@ -123,7 +113,7 @@ def role_echo(domain_id: int) -> None:
     """Answer every ping with the same message on the pong topic, from the callback (the graph's executor)."""
     from bb2_msgs_py.contract import message_class, qos_profile
 
-    ctx, node = _init(domain_id, "bb2_floor_echo")
+    ctx, node = own_node(domain_id, "bb2_floor_echo")
     cls = message_class(STATE_TYPE)
     pub = node.create_publisher(cls, PONG, qos_profile("/bb2/state_native"))
     node.create_subscription(cls, PING, pub.publish, qos_profile("/bb2/state_native", reader=True))
@@ -181,12 +171,9 @@ def graph_counts(args, tmp: Path) -> tuple[dict[str, float], dict[str, bytes], d
 
 def runner_step_s(args, tmp: Path) -> float:
     """The library runner's wall time per ROM step on the same mission."""
-    from bb2_mission import MissionRunner, load_mission
-    from graph_speed import TS
+    from graph_speed import TS, runner_summary
 
-    mission = tmp / "canyon_runner.yaml"
-    mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nduration_s: {float(args.sim_s)}\n")
-    s = MissionRunner(load_mission(mission)).run().summary
+    s = runner_summary(args.sim_s, tmp)
     return s.wall_time_s / (s.mission_time_s / TS)
 
 
@@ -200,7 +187,7 @@ def publish_costs(domain_id: int, topics: dict[str, str], samples: dict[str, byt
     from bb2_ros.node_common import make_executor
 
     reader = _child("reader", domain_id, list(topics.items()))
-    ctx, node = _init(domain_id, "bb2_floor_writer")
+    ctx, node = own_node(domain_id, "bb2_floor_writer")
     ex = make_executor(ctx)
     ex.add_node(node)
     out = {}
@@ -256,7 +243,7 @@ def hop_times(domain_id: int, sample: bytes, n: int) -> np.ndarray:
     from bb2_ros.node_common import make_executor
 
     echo = _child("echo", domain_id)
-    ctx, node = _init(domain_id, "bb2_floor_pinger")
+    ctx, node = own_node(domain_id, "bb2_floor_pinger")
     cls = message_class(STATE_TYPE)
     msg = deserialize_message(sample, cls)
     got = [0]

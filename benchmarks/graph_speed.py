@@ -48,6 +48,17 @@ from bb2_ros.node_common import REALTIME_CONTROLLERS, take_all  # noqa: E402
 TS = 0.05  # the ROM's major step (s); one simulator step per Ts of sim time
 
 
+def own_node(domain_id: int, name: str):
+    """(context, node): an rclpy node in a context of its own on ``domain_id`` (no rosout, no parameter services)."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.signals import SignalHandlerOptions
+
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+    return context, rclpy.create_node(name, context=context, enable_rosout=False, start_parameter_services=False)
+
+
 class Probe:
     """An rclpy node (own context) taking the DDS source timestamps (writer's wall clock at publication) of
     the simulator's states and the mixer's plane commands, per sim-time stamp.
@@ -63,11 +74,8 @@ class Probe:
     def __init__(self, domain_id: int):
         import threading
 
-        import rclpy
-        from rclpy.context import Context
         from rclpy.qos import HistoryPolicy
         from rclpy.serialization import deserialize_message
-        from rclpy.signals import SignalHandlerOptions
 
         from bb2_msgs_py import conversions as cv
         from bb2_msgs_py.contract import message_class, qos_profile
@@ -77,10 +85,7 @@ class Probe:
         #                                               until the clock starts)
         self.cmd_src: dict[int, int] = {}
         self.hop_src: dict[str, dict[int, int]] = {"/bb2/guidance/rate_cmd": {}, "/bb2/autopilot/vh_cmd": {}}
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("bb2_bench_probe", context=self.context, enable_rosout=False,
-                                      start_parameter_services=False)
+        self.context, self.node = own_node(domain_id, "bb2_bench_probe")
 
         def qos(name):
             q = qos_profile(name)
@@ -196,13 +201,18 @@ def stamps_and_pub_times(reader, topic: str) -> list[tuple[int, int]]:
     return out
 
 
-def runner_rtf(args, tmp: Path) -> float:
-    """The library mission runner's real-time factor on the lockstep benchmark's mission (same process, no ROS)."""
+def runner_summary(sim_s: float, tmp: Path):
+    """The library mission runner's summary on the canyon cut at ``sim_s`` (same process, no ROS)."""
     from bb2_mission import MissionRunner, load_mission
 
     mission = tmp / "canyon_runner.yaml"
-    mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nduration_s: {float(args.lockstep_sim_s)}\n")
-    s = MissionRunner(load_mission(mission)).run().summary
+    mission.write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nduration_s: {float(sim_s)}\n")
+    return MissionRunner(load_mission(mission)).run().summary
+
+
+def runner_rtf(args, tmp: Path) -> float:
+    """The library mission runner's real-time factor on the lockstep benchmark's mission (same process, no ROS)."""
+    s = runner_summary(args.lockstep_sim_s, tmp)
     rtf = s.mission_time_s / s.wall_time_s
     print(f"library runner, same mission: {s.mission_time_s:.1f} s simulated in {s.wall_time_s:.2f} s wall: "
           f"{rtf:.1f}x")
