@@ -662,16 +662,16 @@ class Simulator(Node):
         waking another thread.  ``on_scheduling(scheduling)``: the stepping thread's scheduling, when it is set
         or given up (what every node of the process runs its callbacks with).  Returns when ``keep_going()`` is
         false or the node closes."""
-        def spin_for(seconds: float, until: Callable[[], bool] | None = None) -> bool:
+        def spin_for(seconds: float, event: threading.Event | None = None) -> bool:
             deadline = time.monotonic() + seconds
             while keep_going() and not self._rt_stop.is_set():
-                if until is not None and until():
+                if event is not None and event.is_set():
                     return True
                 left = deadline - time.monotonic()
                 if left <= 0:
                     break
                 executor.spin_once(timeout_sec=left)
-            return until is not None and until()
+            return event is not None and event.is_set()
 
         self._on_scheduling = on_scheduling
         self._realtime_loop(pause=spin_for, keep_going=keep_going)
@@ -680,14 +680,14 @@ class Simulator(Node):
                        keep_going: Callable[[], bool] = lambda: True) -> None:
         """Real time: step at ``rate_hz`` on absolute monotonic deadlines (waits to the next deadline; a
         step later than a whole period is an overrun: counted, and the schedule restarts from now).  ``pause(s,
-        until=None)`` waits ``s`` seconds or until ``until()`` is true (returns it): a thread of its own sleeps,
-        :meth:`drive` spins the executor meanwhile."""
+        event=None)`` waits ``s`` seconds or until ``event`` (a :class:`threading.Event`) is set, and returns whether
+        it is: a thread of its own sleeps on the event, :meth:`drive` spins the executor meanwhile."""
         if pause is None:
-            def pause(seconds: float, until: Callable[[], bool] | None = None) -> bool:
-                if until is None:
+            def pause(seconds: float, event: threading.Event | None = None) -> bool:
+                if event is None:
                     time.sleep(seconds)
                     return False
-                return self._answered.wait(seconds)  # (the only condition waited on)
+                return event.wait(seconds)
         if self.realtime_priority > 0:
             try:
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.realtime_priority))  # this thread
@@ -767,7 +767,7 @@ class Simulator(Node):
     def _publish_after_answer(self, period: float, pause: Callable[..., bool]) -> None:
         """The held samples of the step just taken: out once the controllers answered its state (the lock free
         meanwhile: the answer's callback takes it), or after ``answer_first_s`` (at most half a period)."""
-        if pause(min(self.answer_first_s, 0.5 * period), self._answered.is_set):
+        if pause(min(self.answer_first_s, 0.5 * period), self._answered):
             self.samples_after_answer += 1
         else:
             self.samples_after_wait += 1
