@@ -690,6 +690,12 @@ class BagReader:
         for m, msg in self.decoded_messages(topics):
             yield m.topic, m.log_time_ns, msg
 
+    def last_statuses(self, topic: str = "/bb2/status") -> dict[str, dict[str, str]]:
+        """Each node's last status on ``topic`` (``diagnostic_msgs/DiagnosticArray``): status name -> its key/values
+        (a node's statuses come in the order it sent them: one writer, one reader)."""
+        return {st.name: {kv.key: kv.value for kv in st.values} for _t, _lt, msg in self.messages(topic)
+                for st in msg.status}
+
     def decoded_messages(self, topics: Iterable[str] | str | None = None) -> Iterator[tuple[RawMessage, Any]]:
         """``(raw message, decoded message)``: with the publication time (our recorder's: the DDS source
         timestamp) and sequence number the decoded message lacks."""

@@ -166,18 +166,9 @@ def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeou
     return res, (res.stepping_wall_s or float("nan")), pr
 
 
-def last_statuses(reader) -> dict[str, dict[str, str]]:
-    """Each node's last status in the bag (by status name)."""
-    last: dict[str, dict[str, str]] = {}
-    for _topic, _t, msg in reader.messages("/bb2/status"):
-        for st in msg.status:
-            last[st.name] = {kv.key: kv.value for kv in st.values}
-    return last
-
-
 def last_simulator_status(reader) -> dict[str, str]:
     """The simulator's last status in the bag (its statuses come in step order: one writer, one reader)."""
-    return next((vals for name, vals in last_statuses(reader).items() if "simulator" in name), {})
+    return next((vals for name, vals in reader.last_statuses().items() if "simulator" in name), {})
 
 
 def stamps_and_pub_times(reader, topic: str) -> list[tuple[int, int]]:
@@ -345,7 +336,7 @@ def realtime(args, tmp: Path, layout: str = "alone") -> dict:
     figures["jitter_max_ms"] = float(dev_ms.max())
     # the garbage collector's pauses stop every thread of a process (bb2_ros.heap): each process's, from its
     # nodes' last statuses (composed nodes share one collector: the same figures under each name)
-    gcs = {name.removeprefix("bb2/"): st for name, st in last_statuses(reader).items() if "gc_collections" in st}
+    gcs = {name.removeprefix("bb2/"): st for name, st in reader.last_statuses().items() if "gc_collections" in st}
     print("  garbage collections since spinning (count, longest pause; heap frozen at start): " + "; ".join(
         f"{n} {st['gc_collections']}, {st['gc_pause_max_ms']} ms ({st['gc_frozen_objects']} objects)"
         for n, st in sorted(gcs.items())))

@@ -140,8 +140,7 @@ def last_statuses(bag: Path) -> dict[str, dict[str, str]]:
     """Each node's last ``/bb2/status`` in a bag: status name -> its key/values."""
     from bb2_tools.bagfile import BagReader
 
-    return {st.name: {kv.key: kv.value for kv in st.values}
-            for _t, _lt, msg in BagReader(bag).messages("/bb2/status") for st in msg.status}
+    return BagReader(bag).last_statuses()
 
 
 def library_trajectory(mission_file: Path):

@@ -361,3 +361,27 @@ def test_publication_counts_show_the_losses_sequence_numbers_cannot(tmp_path):
     (bag / PUBLICATION_COUNTS_FILE).write_text(json.dumps({"published": {"/a": "ten"}}))
     with pytest.raises(BagError, match="message counts"):
         bag_gaps(BagReader(bag))
+
+
+def test_last_statuses_gives_each_nodes_last_status_by_name(tmp_path):
+    """``BagReader.last_statuses``: each status name's key/values from the last array that carried it, whatever
+    other nodes sent after it (the benchmarks and the graph tests read a run's final account this way)."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+    def array(*statuses):
+        return serialize_message(DiagnosticArray(status=[DiagnosticStatus(
+            name=name, values=[KeyValue(key=k, value=v) for k, v in vals.items()]) for name, vals in statuses]))
+
+    w = BagWriter(tmp_path / "st")
+    w.add_topic("/bb2/status", "diagnostic_msgs/msg/DiagnosticArray", offered_qos=[qos_entry()])
+    w.add_topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", offered_qos=[qos_entry()])
+    w.write("/bb2/status", array(("bb2/simulator", {"step": "1", "state": "running"})), 1)
+    w.write("/bb2/status", array(("bb2/mixer", {"answered": "1"})), 2)
+    w.write("/bb2/status", array(("bb2/simulator", {"step": "200"})), 3)  # the last one whole, not merged
+    w.write("/bb2/status", array(("bb2/mixer", {"answered": "199"}), ("bb2/extra", {})), 4)
+    w.write("/diagnostics", array(("bb2/simulator", {"step": "999"})), 5)
+    w.close()
+    r = BagReader(tmp_path / "st")
+    assert r.last_statuses() == {"bb2/simulator": {"step": "200"}, "bb2/mixer": {"answered": "199"},
+                                 "bb2/extra": {}}
+    assert r.last_statuses("/diagnostics") == {"bb2/simulator": {"step": "999"}}
