@@ -874,6 +874,22 @@ def _callbacks_on_stepping_thread(shells: Sequence[Any], scheduling: str) -> Non
 
 
 # ----------------------------------------------------------------------------------------- status
+def cpu_times() -> dict[str, str]:
+    """What every node's status says of its process's CPU use so far (s, as the kernel counts it): ``process_id``,
+    ``cpu_process_s`` (all its threads: the middleware's receive and event threads too) and ``cpu_main_thread_s``
+    (its main thread, which spins the executor under :func:`run_nodes`: every callback, and a real-time simulator's
+    steps in its default loop).  Two statuses of a node give its CPU per step (``benchmarks/graph_speed.py``);
+    nodes composed into one process say the same process's figures."""
+    try:  # (read before the process's: never above it)
+        main = time.clock_gettime(time.pthread_getcpuclockid(threading.main_thread().ident))
+    except (AttributeError, OSError, TypeError):  # no per-thread CPU clock on this platform: left out
+        main = None
+    out = {"process_id": str(os.getpid()), "cpu_process_s": f"{time.process_time():.6f}"}
+    if main is not None:
+        out["cpu_main_thread_s"] = f"{main:.6f}"
+    return out
+
+
 class NodeStatus:
     """Publishes ``/bb2/status`` (``diagnostic_msgs/DiagnosticArray``) for a node every ``period_s`` wall
     seconds.  The header stamp is the node's clock (the simulation time with ``use_sim_time``)."""
@@ -898,6 +914,7 @@ class NodeStatus:
         vals.update(self.values())
         vals.update(heap.PAUSES.status_values())
         vals["cpus"] = process_cpus()
+        vals.update(cpu_times())
         st = DiagnosticStatus(level=bytes([self.level]), name=self.name, message=self.message,
                               hardware_id=self.node.get_fully_qualified_name(),
                               values=[KeyValue(key=k, value=str(v)) for k, v in vals.items()])

@@ -147,7 +147,7 @@ from bb2_sim.state import VehicleState
 from bb2_ros import heap
 from bb2_ros.node_common import (NAV_STATE_TOPIC, NodeConfigError, Throttle, build_piece, check_remaps,
                                  contract_publisher, declare, declare_callback_priority, declare_lockstep_priority,
-                                 format_cpus, mission_only, node_options, parse_cpus, pin_this_thread,
+                                 cpu_times, format_cpus, mission_only, node_options, parse_cpus, pin_this_thread,
                                  process_cpus, require_choice, require_positive, run_node)
 
 TOPICS_OUT = ("/clock", "/bb2/state_native", "/bb2/odom", "/bb2/imu", "/bb2/depth", "/bb2/altitude",
@@ -965,6 +965,7 @@ class Simulator(Node):
             vals["samples_after_answer"] = str(self.samples_after_answer)
             vals["samples_after_wait"] = str(self.samples_after_wait)
         vals.update(heap.PAUSES.status_values())
+        vals.update(cpu_times())
         if self.ack.enabled:
             vals["recorder_ack"] = ("given up" if self.ack.given_up else "waiting" if self._held is not None
                                     else "ok")

@@ -6,7 +6,8 @@
    stepping -- from the first step on, the start-up handshake at t = 0 excluded -- and including
    start-up) -- goal >= 20x -- and the message counts: what the simulator published (its step count
    from ``trajectory_csv`` and its re-send counter from the last ``/bb2/status``) against what is in
-   the bag, per topic -- goal: zero lost.
+   the bag, per topic -- goal: zero lost.  And each node process's CPU per step while stepping (process and main
+   thread, from the ``cpu_process_s`` / ``cpu_main_thread_s`` of its nodes' statuses): where the step goes.
 2. Real time at 100 Hz (``rate_hz: 100``, 100 s of sim time = 20 s wall): a probe node takes the
    DDS source timestamps (the writer's wall clock) of ``/bb2/state_native`` and ``/bb2/planes/cmd``;
    the step period's p50/p99 of ``|period - 10 ms|`` -- goal p99 <= 1 ms -- and the sensor ->
@@ -261,7 +262,52 @@ def lockstep(args, tmp: Path, layout: str = "alone") -> dict:
         lost_total += max(lost, 0)
         print(f"    {name:40s} published {pub:6d}  in bag {bag:6d}  lost {lost:5d}")
     print(f"  lost messages: {lost_total}   [goal 0]")
+    print_cpu_per_step(reader)
     return {"rtf": res.rtf_overall, "lost": lost_total}
+
+
+def cpu_per_step(reader, after_s: float = 1.0) -> list[tuple[str, float, float | None]]:
+    """Each node process's CPU per step while the graph stepped, from its nodes' statuses (``cpu_process_s``,
+    ``cpu_main_thread_s``: :func:`bb2_ros.node_common.cpu_times`) between the first one sent after ``after_s`` of
+    sim time and the last one: ``(its nodes, process us per step, main thread us per step or None)``.  A node's
+    steps are the simulator's ``step`` or its sim time over the step (nodes on sim time)."""
+    series: dict[str, list[tuple[float, float, float | None, str]]] = {}
+    for _topic, _t, msg in reader.messages("/bb2/status"):
+        for st in msg.status:
+            v = {kv.key: kv.value for kv in st.values}
+            if "cpu_process_s" not in v:
+                continue
+            if "step" in v:
+                step = float(v["step"])
+            elif v.get("use_sim_time") == "true":
+                step = float(v["node_time_s"]) / TS
+            else:
+                continue
+            main = float(v["cpu_main_thread_s"]) if "cpu_main_thread_s" in v else None
+            series.setdefault(st.name, []).append((step, float(v["cpu_process_s"]), main, v["process_id"]))
+    by_pid: dict[str, list[str]] = {}
+    figures: dict[str, tuple[float, float | None]] = {}
+    for name, rows in series.items():
+        rows = [r for r in rows if r[0] * TS >= after_s]
+        if len(rows) < 2 or rows[-1][0] <= rows[0][0]:
+            continue
+        (s0, p0, m0, pid), (s1, p1, m1, _) = rows[0], rows[-1]
+        by_pid.setdefault(pid, []).append(name.removeprefix("bb2/"))
+        per = (p1 - p0) / (s1 - s0) * 1e6, (None if m0 is None or m1 is None else (m1 - m0) / (s1 - s0) * 1e6)
+        if pid not in figures or "simulator" in name:  # a composed process: the simulator's account, if it holds it
+            figures[pid] = per
+    return [(", ".join(sorted(names)), *figures[pid]) for pid, names in by_pid.items()]
+
+
+def print_cpu_per_step(reader) -> None:
+    rows = cpu_per_step(reader)
+    if not rows:
+        return
+    print("  CPU per step while stepping, per node process (its statuses; the recorder has none):")
+    for names, proc, main in sorted(rows, key=lambda r: -r[1]):
+        print(f"    {names:50s} {proc:7.0f} us" + ("" if main is None else f"  (main thread {main:5.0f} us, the "
+                                                       f"middleware's threads {proc - main:5.0f} us)"))
+    print(f"    {'all of them':50s} {sum(r[1] for r in rows):7.0f} us")
 
 
 def realtime(args, tmp: Path, layout: str = "alone") -> dict:

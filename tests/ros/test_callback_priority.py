@@ -292,3 +292,40 @@ def test_a_main_thread_pinned_apart_still_says_the_process_cpus():
     assert r.returncode == 0, r.stderr
     got = json.loads(r.stdout)
     assert got == {"thread": "1", "after_thread": "0,1", "main": "0", "after_main": "0,1", "main_affinity": [0]}, got
+
+
+def test_the_status_cpu_times_are_the_main_threads_and_the_processs_whoever_asks():
+    """``cpu_times`` (every node's status): ``cpu_main_thread_s`` is the main thread's CPU (the executor's, which runs
+    the callbacks) even when another thread asks (the real-time simulator's stepping thread publishes statuses too),
+    and ``cpu_process_s`` adds every other thread's.  A child process: its main thread burns 0.3 s of CPU, then a
+    second thread burns 0.3 s and asks."""
+    child = textwrap.dedent(f"""
+        import json, os, sys, threading, time
+        sys.path.insert(0, {str(REPO)!r})
+        from bb2_ros.node_common import cpu_times
+
+        def burn(s):
+            t0 = time.thread_time()
+            while time.thread_time() - t0 < s:
+                pass
+        before = cpu_times()
+        burn(0.3)
+        main_done = cpu_times()
+        out = {{}}
+        t = threading.Thread(target=lambda: (burn(0.3), out.update(cpu_times())))
+        t.start(); t.join()
+        print(json.dumps({{"before": before, "main_done": main_done, "from_thread": out, "pid": os.getpid()}}))
+    """)
+    r = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    got = json.loads(r.stdout)
+    b, m, t = ({k: float(v) for k, v in got[w].items() if k != "process_id"} for w in ("before", "main_done",
+                                                                                        "from_thread"))
+    assert {got[w]["process_id"] for w in ("before", "main_done", "from_thread")} == {str(got["pid"])}, got
+    assert m["cpu_main_thread_s"] - b["cpu_main_thread_s"] >= 0.3 and m["cpu_process_s"] - b["cpu_process_s"] >= 0.3
+    # asked from the second thread: the main thread's CPU has not moved (the second thread's is not counted in it),
+    # the process's has grown by the second thread's 0.3 s
+    assert t["cpu_main_thread_s"] - m["cpu_main_thread_s"] < 0.05, got
+    assert t["cpu_process_s"] - m["cpu_process_s"] >= 0.3, got
+    for x in (b, m, t):
+        assert 0.0 < x["cpu_main_thread_s"] <= x["cpu_process_s"], got
