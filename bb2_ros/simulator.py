@@ -228,6 +228,7 @@ class Simulator(Node):
             "0 = at once", lambda v: setattr(self, "answer_first_s", v), positive("answer_first_s", zero=True))
         self._on_scheduling: Callable[[str], None] | None = None  # drive(): the executor's thread's scheduling
         self._answered = threading.Event()  # real time: the plane command to the state of the current step came
+        self._started = threading.Event()  # real time: set with `started` (wakes the stepping loop at once)
         self._deferred: Callable[[], None] | None = None  # real time: the step's samples held for the answer
         self.samples_after_answer = 0  # real time: steps whose samples waited for the answer ...
         self.samples_after_wait = 0  # ... and steps whose answer did not come within answer_first_s
@@ -589,6 +590,8 @@ class Simulator(Node):
         self._next_tick = time.monotonic()  # before `started`: the real-time thread reads both unlocked
         self.started = True
         self._publish_state()
+        self._next_tick = time.monotonic()  # real time: the first deadline once the first state is out (its first
+        self._started.set()  # publication's cost, ms on a slow machine, would make the first step late)
 
     def _watchdog(self) -> None:
         if self.finished and not self.done:
@@ -705,8 +708,8 @@ class Simulator(Node):
         late_since = 0.0  # ... since this wall time (the first of them)
         while not self._rt_stop.is_set() and keep_going():
             period = 1.0 / self.rate_hz  # live parameter: a new rate from the next deadline on
-            if not self.started:  # _start sets the first deadline
-                pause(0.01)
+            if not self.started:  # _start sets the first deadline and wakes this loop at once (a plain 10-ms poll
+                pause(0.1, self._started)  # made the first step up to a period late, the second an overrun)
                 continue
             if not pinned:  # now: the process's threads were pinned (its cpus) before it began to spin
                 pinned = True

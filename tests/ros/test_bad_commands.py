@@ -529,6 +529,7 @@ def test_realtime_loop_idles_once_the_mission_is_over(bench):
     sim = start(time_mode="realtime", rate_hz=100.0, duration_s=1.0, status_period_s=0.2, exit_at_end=False)
     b.wait(lambda: b.last_status().get("state") == "finished", 60, "the mission's end", sim)
     time.sleep(0.5)  # the end's own work (statuses, the recorder's acknowledgement: none here) done
+    overruns = int(b.last_status()["overruns"])  # (the mission's own: a slow machine may have some at 100 Hz)
     cpu0, wall0 = _cpu_s(sim.pid), time.monotonic()
     time.sleep(2.0)
     cpu, wall = _cpu_s(sim.pid) - cpu0, time.monotonic() - wall0
@@ -537,7 +538,7 @@ def test_realtime_loop_idles_once_the_mission_is_over(bench):
     # a busy loop costs a whole core at SCHED_FIFO (even beside CPU hogs), half of one at normal priority beside two
     assert cpu < 0.25 * wall, (cpu, wall, st)
     assert not st.get("scheduling", "").startswith("normal (SCHED_FIFO given up"), st
-    assert int(st["overruns"]) == 0, st
+    assert int(st["overruns"]) == overruns, st  # polling the end is never a late step
 
 
 def _allowed_cpus(pid: int) -> dict[int, str]:

@@ -2,7 +2,10 @@
 
 * ``realtime_loop`` executor (the default): the simulator steps on the thread that spins its process's executor, so
   in a composed graph the controllers answer a state on the thread that published it, within the same turn: every
-  step's answer is in before the step's other samples go out (``samples_after_wait`` 0), however loaded the machine;
+  step's answer is in before the step's other samples go out (``samples_after_wait`` 0), however loaded the machine,
+  as long as the controllers' callbacks fit in the wait (``answer_first_s``, at most half a period: it bounds the
+  samples' delay, the turn's own work included; on a machine 5x slower than the fast ones of this kind the composed
+  controllers' callbacks take ~5 ms, so that test flies at 20 Hz, real time, with a 25-ms wait);
 * ``answer_first_s``: a step's IMU, plane/propeller states, depth and altitude go out after the controllers'
   plane command to its state (DDS source timestamps in the bag), or after the wait; 0 = at once, before any answer;
 * ``realtime_loop`` thread (a stepping thread of its own) flies the same graph.
@@ -28,13 +31,14 @@ SIM_S = 10.0  # at 100 Hz (5x real time): 200 steps in 2 s of wall time
 pytestmark = [pytest.mark.ros]
 
 
-def _fly(tmp_path: Path, name: str, *launch_args: str, **sim_params) -> tuple[Path, str]:
-    """A real-time straight mission of SIM_S at 100 Hz through bb2-launch; (bag, stderr)."""
+def _fly(tmp_path: Path, name: str, *launch_args: str, sim_s: float = SIM_S, rate_hz: float = 100.0,
+         **sim_params) -> tuple[Path, str]:
+    """A real-time straight mission of ``sim_s`` at ``rate_hz`` steps a second through bb2-launch; (bag, stderr)."""
     mission = tmp_path / f"{name}.yaml"
-    mission.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: {name}\nduration_s: {SIM_S}\n")
+    mission.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nname: {name}\nduration_s: {sim_s}\n")
     params = tmp_path / f"{name}_params.yaml"
     extra = "".join(f"    {k}: {v}\n" for k, v in sim_params.items())
-    params.write_text(f"simulator:\n  ros__parameters:\n    rate_hz: 100.0\n{extra}")
+    params.write_text(f"simulator:\n  ros__parameters:\n    rate_hz: {rate_hz}\n{extra}")
     out = tmp_path / name
     r = subprocess.run([PY, "-m", "bb2_tools.launcher", str(mission), "--out", str(out), "--mode", "realtime",
                         "--params", str(params), "--end-at", "simulator", "--timeout", "300", *launch_args],
@@ -67,11 +71,12 @@ def _samples_after_the_answer(bag: Path) -> tuple[int, int]:
 
 def test_composed_the_controllers_answer_on_the_stepping_thread_before_the_samples_go_out(tmp_path):
     pytest.importorskip("rclpy")
-    out, err = _fly(tmp_path, "composed", "--compose")
+    sim_s = 5.0  # real time (20 Hz): 100 steps, a 25-ms wait for the answer
+    out, err = _fly(tmp_path, "composed", "--compose", sim_s=sim_s, rate_hz=20.0, answer_first_s=0.025)
     st = last_statuses(out)
     sim = st["bb2/simulator"]
     steps = int(sim["step"])
-    assert steps == round(SIM_S / 0.05), sim
+    assert steps == round(sim_s / 0.05), sim
     after, waited = int(sim["samples_after_answer"]), int(sim["samples_after_wait"])
     # every step but the last (its samples go with the end) held its samples for the answer; on the stepping thread
     # the answer comes in the same turn: none waited out answer_first_s, even beside CPU hogs (SCHED_FIFO)
