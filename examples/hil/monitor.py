@@ -35,6 +35,14 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 
+def mission_path(mission_file: Path):
+    """The mission's path in the native frame (what the path errors are measured against)."""
+    from bb2_mission import load_mission
+
+    mission = load_mission(mission_file)
+    return mission.path if mission.path.frame == "native" else mission.path.to_frame("native")
+
+
 def summarize(mission_file: Path, odom: list[tuple[float, np.ndarray]], statuses: list[dict[str, str]],
               *, settle_s: float = 10.0) -> dict:
     """The judgement of a flight from its odometry ``(t, p_native)`` and simulator status values.
@@ -42,10 +50,9 @@ def summarize(mission_file: Path, odom: list[tuple[float, np.ndarray]], statuses
     ``settle_s``: the path errors are also reported from this sim time on (``*_settled``), after the
     vehicle has converged from the start-up transient.
     """
-    from bb2_mission import load_mission, path_errors_closest
+    from bb2_mission import path_errors_closest
 
-    mission = load_mission(mission_file)
-    path = mission.path if mission.path.frame == "native" else mission.path.to_frame("native")
+    path = mission_path(mission_file)
     t = np.array([s[0] for s in odom]) if odom else np.zeros(0)
     P = np.array([s[1] for s in odom]).reshape(-1, 3)
     finite = bool(np.all(np.isfinite(P)))
@@ -120,16 +127,17 @@ def main(argv: list[str] | None = None) -> int:
                              qos_profile("/bb2/status", reader=True))
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, lambda *_: stop.set())
+    mission_path(args.mission)  # the imports and the path, before the flight: the judgement after it is quick
     print("hil monitor ready", flush=True)
     deadline = time.monotonic() + args.timeout
     while not stop.is_set() and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
-    node.destroy_node()
-    rclpy.shutdown()
     summary = summarize(args.mission, odom, statuses)
     summary["timed_out"] = not stop.is_set()
-    if args.summary:
+    if args.summary:  # written before the middleware's teardown (which a loaded machine has seen stuck)
         args.summary.write_text(json.dumps(summary, indent=2))
+    node.destroy_node()
+    rclpy.shutdown()
     fin = summary["final_status"]
     print(f"hil monitor: {summary['odometry_messages']} odometry messages to t = {summary['t_last_s']:.2f} s, "
           f"state finite: {summary['state_finite']}\n"

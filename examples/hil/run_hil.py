@@ -229,7 +229,7 @@ def main(argv: list[str] | None = None) -> int:
         except subprocess.TimeoutExpired:
             print("run_hil: the simulator did not finish in time", file=sys.stderr)
         try:
-            monitor.p.wait(timeout=5)  # it stops on the simulator's `finished` status
+            monitor.p.wait(timeout=30)  # it stops on the simulator's `finished` status (seconds on a loaded machine)
         except subprocess.TimeoutExpired:
             monitor.stop()
         if net:
