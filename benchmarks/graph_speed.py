@@ -155,14 +155,18 @@ class ProcessCpu:
         def ns(path: str) -> int:
             with open(path) as f:
                 return int(f.read().split()[0])
-        task = Path(f"/proc/{pid}/task")
-        total = 0
-        for t in task.iterdir():
+        total, main = 0, None
+        for t in Path(f"/proc/{pid}/task").iterdir():
             try:
-                total += ns(f"{t}/schedstat")
+                v = ns(f"{t}/schedstat")
             except (OSError, ValueError):  # the thread ended
-                pass
-        return total * 1e-9, ns(f"/proc/{pid}/task/{pid}/schedstat") * 1e-9
+                continue
+            total += v
+            if t.name == str(pid):
+                main = v
+        if main is None:  # the main thread (the process) ended
+            raise OSError(f"process {pid} ended")
+        return total * 1e-9, main * 1e-9
 
     def start(self, sup, monitor) -> None:
         import threading
