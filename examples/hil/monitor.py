@@ -44,15 +44,17 @@ def mission_path(mission_file: Path):
 
 
 def summarize(mission_file: Path, odom: list[tuple[float, np.ndarray]], statuses: list[dict[str, str]],
-              *, settle_s: float = 10.0) -> dict:
+              *, settle_s: float = 10.0, path=None) -> dict:
     """The judgement of a flight from its odometry ``(t, p_native)`` and simulator status values.
 
     ``settle_s``: the path errors are also reported from this sim time on (``*_settled``), after the
-    vehicle has converged from the start-up transient.
+    vehicle has converged from the start-up transient.  ``path``: the mission's path in the native frame
+    when the caller has it already (``mission_path(mission_file)``); loaded from ``mission_file`` otherwise.
     """
     from bb2_mission import path_errors_closest
 
-    path = mission_path(mission_file)
+    if path is None:
+        path = mission_path(mission_file)
     t = np.array([s[0] for s in odom]) if odom else np.zeros(0)
     P = np.array([s[1] for s in odom]).reshape(-1, 3)
     finite = bool(np.all(np.isfinite(P)))
@@ -127,12 +129,12 @@ def main(argv: list[str] | None = None) -> int:
                              qos_profile("/bb2/status", reader=True))
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, lambda *_: stop.set())
-    mission_path(args.mission)  # the imports and the path, before the flight: the judgement after it is quick
+    path = mission_path(args.mission)  # the imports and the path, before the flight: the judgement after it is quick
     print("hil monitor ready", flush=True)
     deadline = time.monotonic() + args.timeout
     while not stop.is_set() and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
-    summary = summarize(args.mission, odom, statuses)
+    summary = summarize(args.mission, odom, statuses, path=path)
     summary["timed_out"] = not stop.is_set()
     if args.summary:  # written before the middleware's teardown (which a loaded machine has seen stuck)
         args.summary.write_text(json.dumps(summary, indent=2))

@@ -319,3 +319,24 @@ def test_the_monitor_judges_the_takeover_from_the_simulators_counters_when_it_ma
     old = [dict(ok, failsafe="true", sim_time_s="0.2"), dict(ok, sim_time_s="0.5"), dict(ok, failsafe="true"), ok]
     s = summarize(MISSION, [], old)
     assert s["failsafe_released_at_s"] == 0.5 and s["failsafe_after_release"] and "failsafe_steps_after_release" not in s
+
+
+def test_the_monitor_judges_against_the_path_it_loaded_before_the_flight():
+    """The monitor loads the mission's path once, before the flight, and judges with it (``path=``): the same
+    judgement as from the mission file, and a different path gives different errors (the one given is used)."""
+    sys.path.insert(0, str(RUN_HIL.parent))
+    try:
+        from monitor import mission_path, summarize
+    finally:
+        sys.path.remove(str(RUN_HIL.parent))
+    path = mission_path(MISSION)
+    P = path(path.t0 + np.linspace(0.05, 0.8, 9) * (path.tf - path.t0)) + np.array([0.0, 0.0, 1.5])
+    odom = [(2.0 * i, p) for i, p in enumerate(P)]  # to t = 16 s: the settled errors (from 10 s) too
+    ok = [{"failsafe": "false", "sim_time_s": "1.0", "state": "finished"}]
+    from_file = summarize(MISSION, odom, ok)
+    given = summarize(MISSION, odom, ok, path=path)
+    assert given == from_file and from_file["e_vertical_max_m"] > 1.0
+    from bb2_planner.bernstein import BernsteinPath
+    lifted = BernsteinPath(path.control_points + np.array([0.0, 0.0, 1.5]), path.t0, path.tf, path.frame)
+    shifted = summarize(MISSION, odom, ok, path=lifted)
+    assert shifted["e_vertical_max_m"] < 1e-6 < from_file["e_vertical_max_m"]
