@@ -892,9 +892,12 @@ def cpu_times() -> dict[str, str]:
 
 class NodeStatus:
     """Publishes ``/bb2/status`` (``diagnostic_msgs/DiagnosticArray``) for a node every ``period_s`` wall
-    seconds.  The header stamp is the node's clock (the simulation time with ``use_sim_time``)."""
+    seconds.  The header stamp is the node's clock (the simulation time with ``use_sim_time``).
 
-    def __init__(self, node, name: str, period_s: float, values: Callable[[], dict[str, str]]):
+    ``period_s`` None: no timer; the caller publishes (the recorder, which waits on a wait set of its own, not on an
+    executor that would run a timer)."""
+
+    def __init__(self, node, name: str, period_s: float | None, values: Callable[[], dict[str, str]]):
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.clock import Clock, ClockType
 
@@ -903,13 +906,18 @@ class NodeStatus:
         self.pub = contract_publisher(node, "/bb2/status", DiagnosticArray)
         # and on the standard /diagnostics (rqt_robot_monitor, diagnostic_aggregator)
         self.pub_diagnostics = contract_publisher(node, "/diagnostics", DiagnosticArray)
-        self.timer = node.create_timer(period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.timer = None if period_s is None else \
+            node.create_timer(period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
-    def publish(self) -> None:
+    def publish(self, now_ns: int | None = None) -> None:
+        """Publish one status now; ``now_ns``: its stamp and ``node_time_s`` when the node keeps its time itself
+        (the recorder's simulation time from /clock), else the node's clock."""
         from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+        from rclpy.time import Time
         from std_msgs.msg import Header
 
-        vals = {"node_time_s": f"{self.node.get_clock().now().nanoseconds * 1e-9:.6f}",
+        now = self.node.get_clock().now() if now_ns is None else Time(nanoseconds=int(now_ns))
+        vals = {"node_time_s": f"{now.nanoseconds * 1e-9:.6f}",
                 "use_sim_time": str(self.node.get_parameter("use_sim_time").value).lower()}
         vals.update(self.values())
         vals.update(heap.PAUSES.status_values())
@@ -918,7 +926,7 @@ class NodeStatus:
         st = DiagnosticStatus(level=bytes([self.level]), name=self.name, message=self.message,
                               hardware_id=self.node.get_fully_qualified_name(),
                               values=[KeyValue(key=k, value=str(v)) for k, v in vals.items()])
-        msg = DiagnosticArray(header=Header(stamp=self.node.get_clock().now().to_msg()), status=[st])
+        msg = DiagnosticArray(header=Header(stamp=now.to_msg()), status=[st])
         self.pub.publish(msg)
         self.pub_diagnostics.publish(msg)
 

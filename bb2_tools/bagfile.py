@@ -404,6 +404,11 @@ class BagWriter:
     def message_count(self) -> int:
         return self._message_count
 
+    @property
+    def bytes_written(self) -> int:
+        """Bytes handed to the OS so far (closed chunks; the open chunk is still in memory)."""
+        return self._sink.tell()
+
     def flush(self) -> None:
         """Close the open chunk and hand it to the OS (a later SIGKILL cannot lose it)."""
         self._check_open()
@@ -915,12 +920,14 @@ def stream_source(type_name: str, data: bytes) -> str:
         return ""
     try:
         msg = _diagnostics_decoder()(data)
-        return ",".join(sorted({_status_source(str(st.name), str(st.hardware_id)) for st in msg.status}))
+        return ",".join(sorted({status_source(str(st.name), str(st.hardware_id)) for st in msg.status}))
     except Exception:  # undecodable: followed as one more publisher
         return "?"
 
 
-def _status_source(name: str, hardware_id: str) -> str:
+def status_source(name: str, hardware_id: str) -> str:
+    """The publisher :func:`stream_source` names for a status ``name`` sent by the node ``hardware_id`` (its
+    fully qualified name): ``boat1/bb2/simulator`` for ``bb2/simulator`` from ``/boat1/simulator``."""
     namespace = hardware_id.rsplit("/", 1)[0].strip("/") if hardware_id.startswith("/") else ""
     return f"{namespace}/{name}" if namespace else name
 

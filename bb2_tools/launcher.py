@@ -630,14 +630,16 @@ def merge_publication_counts(bag: Path, counts_dir: Path, exits: Sequence[NodeEx
             if (name := wanted.get(resolved)) is not None:
                 published[name] = published.get(name, 0) + int(n)
     node_exits = [e for e in exits if e.name not in ("recorder", FOXGLOVE.name)]
+    # the recorder counts its own statuses too (they are in its bag), but a node's missing count is a node's
+    node_records = [r for r in records if r.get("process") != RECORDER_NODE_NAME]
     uncounted = ([f"{e.name} (attempt {e.attempt}: {e.cause})" for e in node_exits if e.returncode < 0]
-                 if len(records) < len(node_exits) else [])
+                 if len(node_records) < len(node_exits) else [])
     doc = {"published": dict(sorted(published.items())), "processes": records, "uncounted": uncounted}
     tmp = bag / (PUBLICATION_COUNTS_FILE + ".tmp")
     tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     os.replace(tmp, bag / PUBLICATION_COUNTS_FILE)
-    if len(records) < len(node_exits):
-        who = ", ".join(uncounted) or f"{len(node_exits) - len(records)} process(es)"
+    if len(node_records) < len(node_exits):
+        who = ", ".join(uncounted) or f"{len(node_exits) - len(node_records)} process(es)"
         return f"publication counts missing from {who}: a loss at the end of its topics cannot be checked"
     return ""
 

@@ -31,6 +31,12 @@ so a stalled recorder slows the graph instead of losing messages -- on every per
 whose samples the stall pushed out of the transport comes back only when its writer repairs it (a heartbeat
 later), and the simulator must not outrun its writer history meanwhile.
 
+Its own status, as every node's: ``bb2/recorder`` on ``bb2/status`` and ``/diagnostics`` every ``status_period_s``
+wall seconds (parameter, default 1; 0 = none): messages and bytes written, topics, gaps and messages lost (warning
+level once a message was lost), each boat's step acknowledged, and its process's CPU (``cpu_process_s``, as the
+nodes say theirs).  With ``--use-sim-time`` in a boat's graph it is stamped on the boat's simulation time (its
+``use_sim_time`` value says true), so its statuses count CPU per simulated step like a node's.
+
 Stopping: SIGINT or SIGTERM finish the bag (summary, ``rosbag2`` metadata record, metadata.yaml)
 and exit 0.  A SIGKILL loses at most the open chunk (``--chunk-size`` bytes, or
 ``--flush-period`` seconds of data); ``bb2_tools.bagfile.recover`` repairs such a bag.
@@ -61,10 +67,12 @@ from typing import Any, Sequence
 from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, GLOBAL_TOPICS, SCENE_TOPIC, SIM, ContractError, TopicSpec,
                                   check_namespace, message_class, node_topic_name, recorded_in_namespace,
                                   select_topics)
-from bb2_tools.bagfile import GAPS_KEY, BagError, BagWriter, SequenceGaps, qos_entry, stream_source
+from bb2_tools.bagfile import (GAPS_KEY, MULTI_PUBLISHER_TYPES, BagError, BagWriter, SequenceGaps, qos_entry,
+                                status_source, stream_source)
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros import heap
-from bb2_ros.node_common import node_frame, restore_signals, stop_signals, take_all, time_msg
+from bb2_ros.node_common import (NodeStatus, node_frame, restore_signals, stop_signals, take_all, time_msg,
+                                 write_publication_counts)
 
 ODOM_TOPIC = "/bb2/odom"
 ODOM_TYPE = "nav_msgs/msg/Odometry"
@@ -299,7 +307,7 @@ class Recorder:
     def __init__(self, bag: BagWriter, topics: Sequence[TopicSpec], *, tf_from_odom: bool = True,
                  flush_period_s: float = 1.0, queue_depth: int = 1000, node_name: str = "bb2_recorder",
                  use_sim_time: bool = False, node=None, acknowledge: bool = True, gap_warn_s: float = 1.0,
-                 boats: Sequence[str] = ()):
+                 boats: Sequence[str] = (), status_period_s: float = 0.0):
         from rclpy.clock import Clock, ClockType
         from rclpy.node import Node
         from rclpy.serialization import deserialize_message
@@ -341,6 +349,17 @@ class Recorder:
         self.flush_period_s = float(flush_period_s)
         self._next_flush = time.monotonic() + self.flush_period_s
         self._wait_set = None
+        # its own status, as every node's (``bb2/recorder`` on its bb2/status and /diagnostics), published from
+        # spin_once (no executor here to run a timer): the first at the first spin
+        self.status_period_s = float(status_period_s)
+        self._status = NodeStatus(self.node, "bb2/recorder", None, self._status_values) \
+            if self.status_period_s > 0 else None
+        self._next_status = time.monotonic()
+        # its statuses come back to it over DDS and are recorded like any node's; it counts them (bag name -> n) so
+        # that at the stop it takes its last ones, and its publication counts match the bag as the nodes' do
+        self._own_source = status_source("bb2/recorder", self.node.get_fully_qualified_name())
+        self.own_recorded: dict[str, int] = {}
+        self._statuses_stopped = False
 
     def _subscribe(self, spec: TopicSpec, vehicle: Vehicle, *, best_effort: bool = False):
         return self.node.create_subscription(message_class(spec.type), vehicle.graph_name(spec.name),
@@ -421,7 +440,59 @@ class Recorder:
             self._next_flush = time.monotonic() + self.flush_period_s
             self._flush()
             self.adapt_reliability()
+        if self._status is not None and not self._statuses_stopped and time.monotonic() >= self._next_status:
+            self._next_status = time.monotonic() + self.status_period_s
+            self.publish_status()
         return len(taken)
+
+    def _sim_clock(self) -> bool:
+        """Whether the recorder keeps one simulation time (its boat's /clock): not a fleet's, one per boat."""
+        return self.use_sim_time and len(self.vehicles) == 1
+
+    def _status_values(self) -> dict[str, str]:
+        """What the recorder's status says: the bag so far (messages, bytes, topics), the messages lost before they
+        reached it, and each boat's step acknowledged (sim s; ``boat1/acked_step_s`` in a fleet)."""
+        g = self.gaps
+        vals = {"state": "recording", "bag": str(self.bag.bag_dir), "messages_written": str(self.bag.message_count),
+                "bytes_written": str(self.bag.bytes_written),
+                "topics_written": str(sum(1 for t in self.bag.topics.values() if t.message_count)),
+                "gaps": str(len(g.gaps)), "messages_lost": str(g.missing),
+                "log_time": "sim (each boat's /clock)" if self.use_sim_time else "wall"}
+        if self._sim_clock():  # its time is the boat's sim time (its /clock, taken here, not by an executor)
+            vals["use_sim_time"] = "true"
+        for v in self.vehicles:
+            if v.ack_pub is not None and v.acks.acked_ns is not None:
+                vals[f"{v.prefix.strip('/') + '/' if v.prefix else ''}acked_step_s"] = f"{v.acks.acked_ns * 1e-9:.6f}"
+        return vals
+
+    def stop_statuses(self) -> None:
+        """Publish no more statuses (at the stop: the last ones are then awaited, :meth:`own_statuses_pending`)."""
+        self._statuses_stopped = True
+
+    def own_statuses_pending(self) -> bool:
+        """Whether statuses this recorder published on a topic it records have not come back into the bag yet."""
+        if self._status is None:
+            return False
+        bag_names = {sub.topic_name: v.bag_name(spec.name) for sub, spec, v in self._subs if spec is not None}
+        for pub in (self._status.pub, self._status.pub_diagnostics):
+            name = bag_names.get(pub.topic_name)
+            if name is not None and self.own_recorded.get(name, 0) < int(pub.published):
+                return True
+        return False
+
+    def write_publication_counts(self) -> None:
+        """Its publication counts beside the nodes' (where the launcher asked: ``BB2_PUBLISHED_DIR``), so the
+        launcher's check that the bag holds everything published covers its statuses too."""
+        write_publication_counts(NODE_NAME, [self.node])
+
+    def publish_status(self) -> None:
+        """Publish the recorder's status now (warning level once messages were lost before reaching it)."""
+        if self._status is None:
+            return
+        g = self.gaps
+        self._status.level, self._status.message = (1, f"{g.missing} message(s) lost before reaching the recorder "
+                                                       f"({len(g.gaps)} gap(s))") if g.gaps else (0, "recording")
+        self._status.publish(self.vehicles[0].sim_ns if self._sim_clock() else None)
 
     def _serve(self, ready: set) -> None:
         """Answer the ready service requests (ros2 param list/get/describe/dump/set), as an executor would."""
@@ -448,8 +519,11 @@ class Recorder:
                 self.bag.add_topic(name, spec.type, offered_qos=self._offered_qos(spec.name, vehicle),
                                    dds_sequence=seq > 0)
             self.bag.write(name, data, t_ns, pub_ns, sequence=seq if self.bag.topics[name].dds_sequence else None)
+            source = stream_source(spec.type, data) if spec.type in MULTI_PUBLISHER_TYPES else ""
+            if source == self._own_source:
+                self.own_recorded[name] = self.own_recorded.get(name, 0) + 1
             if seq > 0:
-                self.gaps.observe(name, seq, t_ns, stream_source(spec.type, data), pub_ns)
+                self.gaps.observe(name, seq, t_ns, source, pub_ns)
             if vehicle.ack_pub is not None and spec.name in vehicle.acks.topics:
                 vehicle.acks.received(spec.name, self._step_stamp_ns(spec.name, data))
             derived = DERIVED_TOPICS.get(spec.name) if self.tf_from_odom else None  # /tf: one tree for every boat
@@ -558,6 +632,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # read-only: a bag is configured whe
     "tf_from_odom": (True, "write /tf (odom -> base_link) from every /bb2/odom and /tf_static from "
                             "/bb2/sensors/mountings"),
     "overwrite": (False, "allow a non-empty bag_directory"),
+    "status_period_s": (1.0, "wall period of the recorder's own status (bb2/recorder on bb2/status and /diagnostics: "
+                             "messages and bytes written, messages lost, steps acknowledged; 0 = none)"),
 }
 
 
@@ -620,8 +696,11 @@ def _main(argv: Sequence[str] | None) -> int:
             print(f"bb2-record: in {'the fleet ' + ', '.join(boats) if boats else node.get_namespace()}: not "
                   f"recording {', '.join(GLOBAL_TOPICS)} (every boat's statuses; each boat's are in its bb2/status)",
                   flush=True)
-        if chunk <= 0 or depth <= 0 or flush < 0 or not 0 <= batch <= 1:
-            raise ContractError("chunk size and queue depth must be > 0, flush period >= 0, batch period in [0, 1] s")
+        status_period = float(par["status_period_s"])
+        if chunk <= 0 or depth <= 0 or flush < 0 or not 0 <= batch <= 1 or not (math.isfinite(status_period)
+                                                                                and status_period >= 0):
+            raise ContractError("chunk size and queue depth must be > 0, flush period >= 0, batch period in [0, 1] s, "
+                                f"status_period_s >= 0 (got {par['status_period_s']!r})")
         if par["storage_id"] != "mcap":
             raise ContractError(f"parameter 'storage_id' must be mcap, got {par['storage_id']!r}")
         if par["compression"] not in ("zstd", "lz4", ""):
@@ -645,7 +724,8 @@ def _main(argv: Sequence[str] | None) -> int:
 
     previous = stop_signals(stop)
     rec = Recorder(bag, specs, tf_from_odom=not args.no_tf and par["tf_from_odom"], flush_period_s=float(flush),
-                   queue_depth=int(depth), use_sim_time=use_sim_time, node=node, boats=boats)
+                   queue_depth=int(depth), use_sim_time=use_sim_time, node=node, boats=boats,
+                   status_period_s=status_period)
     print(f"bb2-record: recording {len(specs)} topics" + (f" of each of {len(boats)} boats" if boats else "")
           + f" into {out}", flush=True)
     heap.settle()  # no 30-45 ms collector pause while recording (the simulator may wait for its acks)
@@ -658,13 +738,20 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"bb2-record: error while recording: {exc!r}", file=sys.stderr)
         code = 1
     finally:
-        try:  # what DDS delivered before the stop goes into the bag too (it waits in the readers, untaken)
+        try:  # what DDS delivered before the stop goes into the bag too (it waits in the readers, untaken), and the
+            # recorder's own last statuses (they come back over DDS: at once, in one process)
+            rec.stop_statuses()
             deadline = time.monotonic() + DRAIN_TIMEOUT_S
-            while rec.spin_once(0.0) and time.monotonic() < deadline:
-                pass
+            while time.monotonic() < deadline:
+                if rec.spin_once(0.0):
+                    continue
+                if not rec.own_statuses_pending():
+                    break
+                rec.spin_once(0.02)
         except Exception as exc:  # noqa: BLE001 - report, then still finish the bag
             print(f"bb2-record: error while taking the last messages: {exc!r}", file=sys.stderr)
             code = 1
+        rec.write_publication_counts()
         path = rec.close()
         counts = {n: t.message_count for n, t in bag.topics.items()}
         print(f"bb2-record: wrote {bag.message_count} messages to {path}: {counts}", flush=True)

@@ -143,8 +143,8 @@ def test_the_graph_composed_or_not_equals_the_library_runner(tmp_path, canyon_20
     # every node process settled its start-up heap before spinning (bb2_ros.heap): frozen, and the collections
     # since then measured (composed nodes share one collector and say the same)
     statuses = last_statuses(out)
-    for name, st in statuses.items():
-        assert int(st["gc_frozen_objects"]) > 50_000 and int(st["gc_collections"]) >= 0 \
+    for name, st in statuses.items():  # (the recorder imports less than a node: neither the ROM nor the stacks)
+        assert int(st["gc_frozen_objects"]) > (20_000 if name == "bb2/recorder" else 50_000) and int(st["gc_collections"]) >= 0 \
             and float(st["gc_pause_max_ms"]) >= 0.0, (name, st)
         # and what the process spent: the main thread's CPU (every callback) within the whole process's
         assert 0.0 < float(st["cpu_main_thread_s"]) <= float(st["cpu_process_s"]), (name, st)
@@ -153,7 +153,7 @@ def test_the_graph_composed_or_not_equals_the_library_runner(tmp_path, canyon_20
     groups = {"one process per node": [["simulator"], ["planner"], ["path_following"], ["l1_autopilot"], ["mixer"]],
               "composed": [["simulator", "planner", "path_following", "l1_autopilot", "mixer"]],
               "control loop composed": [["simulator"], ["planner"], ["path_following", "l1_autopilot", "mixer"]]
-              }[layout]
+              }[layout] + [["recorder"]]  # the recorder always in a process of its own, saying its status too
     assert sorted(sorted(n for n in pids if pids[n] == pid) for pid in set(pids.values())) \
         == sorted(sorted(g) for g in groups), pids
     assert "recording complete: no gaps" in r.stderr, r.stderr[-3000:]

@@ -865,4 +865,11 @@ def test_publication_counts_are_merged_over_the_recorded_topics_and_a_killed_pro
     assert "publication counts missing from mixer (attempt 0: killed by SIGKILL)" in note, note
     doc = json.loads((bag / PUBLICATION_COUNTS_FILE).read_text())
     assert doc["published"]["/bb2/planes/cmd"] == 1 and doc["uncounted"] == ["mixer (attempt 0: killed by SIGKILL)"]
+    # the recorder counts its own statuses (they are in its bag): summed in, but its file stands for no node's
+    (counts / "recorder-6.json").write_text(json.dumps({"process": "recorder", "pid": 6,
+                                                        "published": {"/bb2/status": 4, "/diagnostics": 4}}))
+    note = L.merge_publication_counts(bag, counts, exits, topics)
+    assert "publication counts missing from mixer (attempt 0: killed by SIGKILL)" in note, note
+    doc = json.loads((bag / PUBLICATION_COUNTS_FILE).read_text())
+    assert doc["published"]["/bb2/status"] == 2 + 4 and doc["uncounted"] == ["mixer (attempt 0: killed by SIGKILL)"]
     assert not list(bag.glob("*.tmp"))

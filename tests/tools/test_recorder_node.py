@@ -80,9 +80,87 @@ def test_recorder_refuses_bad_storage_parameters_with_one_line(tmp_path):
                       (["-p", "batch_period_s:=5.0"], "batch period"), (["-p", "topics:=[/bb2/nothing]"],
                                                                         "matches no contract topic"),
                       (["-p", "boats:=[boat1,1boat]"], "a boat's namespace must be a ROS 2 namespace"),
-                      (["-p", "boats:=[boat1,boat1]"], "the boats must be distinct")):
+                      (["-p", "boats:=[boat1,boat1]"], "the boats must be distinct"),
+                      (["-p", "status_period_s:=-1.0"], "status_period_s")):
         r = subprocess.run([sys.executable, "-m", "bb2_tools.recorder", "--ros-args",
                             "-p", f"bag_directory:={tmp_path / 'b'}", *args], cwd=tmp_path, env=ros_env(claimed_domain()),
                            capture_output=True, text=True, timeout=60)
         assert r.returncode == 2 and why in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
         assert not (tmp_path / "b").exists()
+
+
+def test_the_recorder_says_its_own_status_on_the_boats_sim_time_and_records_it(tmp_path):
+    """The recorder publishes its status as every node does (``bb2/recorder`` on /bb2/status and /diagnostics, from
+    its own wait set: no executor runs a timer there): what it wrote so far, the messages lost, its process's CPU; with
+    --use-sim-time stamped on the boat's /clock.  Its statuses are in its bag too, the bag's counts growing."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import HistoryPolicy
+
+    from bb2_msgs_py import conversions as cv
+    from bb2_msgs_py.contract import message_class, qos_profile
+    from bb2_tools.bagfile import BagReader
+
+    domain = claimed_domain()
+    bag = tmp_path / "bag"
+    proc = subprocess.Popen([sys.executable, "-m", "bb2_tools.recorder", "--out", str(bag), "--use-sim-time",
+                             "--topics", "/clock", "/bb2/status", "--ros-args", "-p", "status_period_s:=0.2"],
+                            cwd=tmp_path, env=dict(ros_env(domain), BB2_PUBLISHED_DIR=str(tmp_path / "published")),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    node = rclpy.create_node("status_probe", context=ctx)
+    seen: dict[str, list[tuple[float, dict[str, str], int, str]]] = {"/bb2/status": [], "/diagnostics": []}
+    for name in seen:
+        q = qos_profile(name, reader=True)
+        q.history, q.depth = HistoryPolicy.KEEP_LAST, 100
+
+        def cb(msg, box=seen[name]):
+            for st in msg.status:
+                if st.name == "bb2/recorder":
+                    box.append((cv.stamp_to_ns(msg.header.stamp) * 1e-9, {kv.key: kv.value for kv in st.values},
+                                st.level[0] if isinstance(st.level, bytes) else int(st.level), st.message))
+        node.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), name, cb, q)
+    clock = node.create_publisher(message_class("rosgraph_msgs/msg/Clock"), "/clock", qos_profile("/clock"))
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    try:
+        deadline = time.monotonic() + 90
+        while clock.get_subscription_count() == 0:  # a /clock before the recorder matched would be a head gap
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate() if proc.poll() else ""
+            ex.spin_once(timeout_sec=0.05)
+        sim_s = 42.5
+        while sum(float(v["node_time_s"]) >= 42.5 and int(v["messages_written"]) > 0
+                  for _t, v, _l, _m in seen["/bb2/status"]) < 3:
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, seen
+            clock.publish(cv.clock_message(sim_s))
+            sim_s += 0.05
+            ex.spin_once(timeout_sec=0.05)
+        stamp, v, level, message = next(x for x in seen["/bb2/status"] if float(x[1]["node_time_s"]) >= 42.5)
+        assert stamp == pytest.approx(float(v["node_time_s"]), abs=1e-6) and v["use_sim_time"] == "true", v  # sim time
+        assert v["process_id"] == str(proc.pid) and float(v["cpu_process_s"]) > 0.0, v
+        assert v["bag"] == str(bag) and v["state"] == "recording" and level == 0 and message == "recording", (v, level, message)
+        assert v["gaps"] == "0" and v["messages_lost"] == "0", v
+        t_end = time.monotonic() + 30
+        while not seen["/diagnostics"]:  # and on the standard diagnostics topic
+            assert time.monotonic() < t_end
+            ex.spin_once(timeout_sec=0.05)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+    assert proc.returncode == 0, err
+    # its statuses are in its bag, each saying what the bag held when it was sent: counts that only grow
+    rows = [(st.values, msg) for _t, _lt, msg in BagReader(bag).messages("/bb2/status") for st in msg.status
+            if st.name == "bb2/recorder"]
+    written = [int({kv.key: kv.value for kv in vals}["messages_written"]) for vals, _m in rows]
+    assert len(written) >= 3 and written == sorted(written) and written[-1] > written[0], written
+    # every one it published (its count, beside the nodes' for the launcher's check), the last ones too
+    import json
+
+    counts = json.loads((tmp_path / "published" / f"recorder-{proc.pid}.json").read_text())
+    assert counts["published"]["/bb2/status"] == len(rows), (counts, len(rows))
+
