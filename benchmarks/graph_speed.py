@@ -137,77 +137,13 @@ LAYOUTS = {"alone": [], "composed": [L.COMPOSABLE],
 the controllers composed with the simulator alone (its real-time thread keeps its interpreter to itself)."""
 
 
-class ProcessCpu:
-    """The CPU of one process of the graph (``name``, as the launcher calls it), from /proc: all its threads and its
-    main thread (schedstat, ns), sampled every 0.2 s against the graph's sim time (the monitor's last /clock) while
-    the graph flies: for a process without a status (the recorder), what :func:`cpu_per_step` gives the nodes."""
-
-    def __init__(self, name: str):
-        import threading
-
-        self.name = name
-        self.samples: list[tuple[float, float, float]] = []  # (sim s, process CPU s, main thread CPU s)
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    @staticmethod
-    def _cpu_s(pid: int) -> tuple[float, float]:
-        def ns(path: str) -> int:
-            with open(path) as f:
-                return int(f.read().split()[0])
-        total, main = 0, None
-        for t in Path(f"/proc/{pid}/task").iterdir():
-            try:
-                v = ns(f"{t}/schedstat")
-            except (OSError, ValueError):  # the thread ended
-                continue
-            total += v
-            if t.name == str(pid):
-                main = v
-        if main is None:  # the main thread (the process) ended
-            raise OSError(f"process {pid} ended")
-        return total * 1e-9, main * 1e-9
-
-    def start(self, sup, monitor) -> None:
-        import threading
-
-        def run():
-            while not self._stop.wait(0.2):
-                child = sup.children.get(self.name)
-                t = monitor.sim_time_s
-                if child is None or t is None or child.popen.poll() is not None:
-                    continue
-                try:
-                    self.samples.append((t, *self._cpu_s(child.popen.pid)))
-                except (OSError, ValueError):  # the process ended meanwhile
-                    pass
-        self._thread = threading.Thread(target=run, daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-
-    def per_step_us(self, after_s: float = 1.0) -> tuple[float, float] | None:
-        """(process, main thread) CPU per step, us, from the first sample after ``after_s`` of sim time to the last
-        one whose sim time moved on (not the shutdown); None without two such samples."""
-        rows = [r for r in self.samples if r[0] >= after_s]
-        while len(rows) >= 2 and rows[-1][0] <= rows[-2][0]:
-            rows.pop()
-        if len(rows) < 2 or rows[-1][0] <= rows[0][0]:
-            return None
-        steps = (rows[-1][0] - rows[0][0]) / TS
-        return (rows[-1][1] - rows[0][1]) / steps * 1e6, (rows[-1][2] - rows[0][2]) / steps * 1e6
-
-
 def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeout_s: float,
-                   probe=False, groups=(), node_params: dict | None = None, cpu: ProcessCpu | None = None
+                   probe=False, groups=(), node_params: dict | None = None
                    ) -> tuple[L.RunResult, float, Probe | None]:
     """Fly ``mission`` through the whole graph (recorder included); return the run result, the
     wall time from the first /clock to the end, and the probe (if asked for, closed).  ``probe``: True for a
     :class:`Probe`, or a factory of the graph's domain id giving any object with ``close()``.  ``node_params``:
-    other nodes' parameters, ``{node: {name: value}}``.  ``cpu``: a :class:`ProcessCpu` to sample meanwhile."""
+    other nodes' parameters, ``{node: {name: value}}``."""
     os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
     os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
     out.mkdir(parents=True, exist_ok=True)
@@ -220,14 +156,10 @@ def run_graph_once(mission: Path, out: Path, mode: str, sim_params: dict, timeou
     specs = L.graph_specs(mission, out, mode=mode, params=params, monitor=monitor, groups=groups)
     sup = Supervisor(specs, out / "logs", env=env)
     pr = (probe if callable(probe) else Probe)(monitor.domain_id) if probe else None
-    if cpu is not None:
-        cpu.start(sup, monitor)
     try:
         res = L.run_graph(sup, monitor, first=[s.name for s in specs if s.ready is not None],
                           timeout_s=timeout_s, status_period_s=10.0)
     finally:
-        if cpu is not None:
-            cpu.stop()
         sup.stop(hurry=True)
         monitor.close()
         if pr is not None:
@@ -288,9 +220,8 @@ def lockstep(args, tmp: Path, layout: str = "alone") -> dict:
     sim = {"duration_s": float(args.lockstep_sim_s), "trajectory_csv": str(csv_path)}
     if args.lockstep_priority:
         sim["lockstep_priority"] = args.lockstep_priority
-    recorder_cpu = ProcessCpu("recorder")
     res, stepping_wall, _ = run_graph_once(REPO / "missions" / "canyon.yaml", out, "lockstep", sim,
-                                           timeout_s=args.timeout, groups=LAYOUTS[layout], cpu=recorder_cpu)
+                                           timeout_s=args.timeout, groups=LAYOUTS[layout])
     total_wall = time.monotonic() - t0
     print(f"lockstep canyon ({layout}): {res.reason} (exit {res.exit_code}); sim time {res.sim_time_s} s"
           + (f" (simulator at SCHED_FIFO {args.lockstep_priority})" if args.lockstep_priority else ""))
@@ -331,16 +262,16 @@ def lockstep(args, tmp: Path, layout: str = "alone") -> dict:
         lost_total += max(lost, 0)
         print(f"    {name:40s} published {pub:6d}  in bag {bag:6d}  lost {lost:5d}")
     print(f"  lost messages: {lost_total}   [goal 0]")
-    rec = recorder_cpu.per_step_us()
-    print_cpu_per_step(reader, [] if rec is None else [("recorder (from /proc)", *rec)])
+    print_cpu_per_step(reader)
     return {"rtf": res.rtf_overall, "lost": lost_total}
 
 
 def cpu_per_step(reader, after_s: float = 1.0) -> list[tuple[str, float, float | None]]:
     """Each node process's CPU per step while the graph stepped, from its nodes' statuses (``cpu_process_s``,
     ``cpu_main_thread_s``: :func:`bb2_ros.node_common.cpu_times`) between the first one sent after ``after_s`` of
-    sim time and the last one: ``(its nodes, process us per step, main thread us per step or None)``.  A node's
-    steps are the simulator's ``step`` or its sim time over the step (nodes on sim time)."""
+    sim time and the last one whose sim time moved on: ``(its nodes, process us per step, main thread us per step or
+    None)``.  A node's steps are the simulator's ``step`` or its sim time over the step (nodes on sim time, and the
+    recorder: its status is stamped on the boat's /clock)."""
     series: dict[str, list[tuple[float, float, float | None, str]]] = {}
     for _topic, _t, msg in reader.messages("/bb2/status"):
         for st in msg.status:
@@ -359,6 +290,8 @@ def cpu_per_step(reader, after_s: float = 1.0) -> list[tuple[str, float, float |
     figures: dict[str, tuple[float, float | None]] = {}
     for name, rows in series.items():
         rows = [r for r in rows if r[0] * TS >= after_s]
+        while len(rows) >= 2 and rows[-1][0] <= rows[-2][0]:  # sent after the end (the shutdown's CPU): left out
+            rows.pop()
         if len(rows) < 2 or rows[-1][0] <= rows[0][0]:
             continue
         (s0, p0, m0, pid), (s1, p1, m1, _) = rows[0], rows[-1]
@@ -369,8 +302,8 @@ def cpu_per_step(reader, after_s: float = 1.0) -> list[tuple[str, float, float |
     return [(", ".join(sorted(names)), *figures[pid]) for pid, names in by_pid.items()]
 
 
-def print_cpu_per_step(reader, others: list[tuple[str, float, float | None]] = ()) -> None:
-    rows = cpu_per_step(reader) + list(others)
+def print_cpu_per_step(reader) -> None:
+    rows = cpu_per_step(reader)
     if not rows:
         return
     print("  CPU per step while stepping, per process (the nodes' from their statuses):")
