@@ -47,6 +47,7 @@ from mcap.writer import CompressionType, Writer
 __all__ = ["BagError", "BagWriter", "BagReader", "RawMessage", "TopicInfo", "message_definition",
            "type_hash", "qos_entry", "qos_yaml", "read_metadata", "recover", "Gap", "SequenceGaps", "bag_gaps",
            "PUBLICATION_COUNTS_FILE", "read_publication_counts", "unrecorded_losses",
+           "RECORDER_STATUS_NAME", "PublicationCounts", "read_publication_count_file",
            "gaps_by_topic", "GAPS_KEY", "SEQUENCE_KEY", "METADATA_VERSION", "ROS_DISTRO"]
 
 METADATA_VERSION = 9
@@ -849,14 +850,35 @@ UNRECORDED = "unrecorded"  # Gap.kind of a loss found from the publishers' count
 
 PUBLICATION_COUNTS_FILE = "publication_counts.json"
 """In a bag directory: the messages the graph's node processes published per topic, counted by each process as it
-exited (``{"published": {topic: n}, "processes": [...], "uncounted": [...]}``, written by ``bb2-launch``).
-:func:`bag_gaps` compares them with the bag: what the bag holds plus what its sequence numbers show lost must
-add up to what was published."""
+exited (``{"published": {topic: n}, "processes": [...], "uncounted": [...], "uncounted_sources": [...]}``,
+written by ``bb2-launch``).  :func:`bag_gaps` compares them with the bag: what the bag holds plus what its sequence
+numbers show lost must add up to what was published.  ``uncounted_sources`` (optional) names the publishers
+(:func:`stream_source`) of :data:`MULTI_PUBLISHER_TYPES` topics whose messages are in the bag but in no count (a
+SIGKILLed recorder's own statuses): they are left out of the bag's side."""
+
+RECORDER_STATUS_NAME = "bb2/recorder"
+"""The recorder's own status name on ``bb2/status`` and ``/diagnostics`` (its statuses come back into its bag)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PublicationCounts:
+    """:data:`PUBLICATION_COUNTS_FILE`'s figures: ``published`` per topic, and the ``uncounted_sources`` whose
+    messages in the bag are in no count."""
+
+    published: dict[str, int]
+    uncounted_sources: tuple[str, ...] = ()
 
 
 def read_publication_counts(bag_dir: Path) -> dict[str, int] | None:
     """The ``published`` counts of :data:`PUBLICATION_COUNTS_FILE` in ``bag_dir``; None when there is no such
     file (:class:`BagError` when it is not a count table)."""
+    counts = read_publication_count_file(bag_dir)
+    return None if counts is None else counts.published
+
+
+def read_publication_count_file(bag_dir: Path) -> PublicationCounts | None:
+    """:data:`PUBLICATION_COUNTS_FILE` in ``bag_dir``; None when there is no such file (:class:`BagError` when it
+    is not a count table)."""
     path = Path(bag_dir) / PUBLICATION_COUNTS_FILE
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
@@ -868,27 +890,39 @@ def read_publication_counts(bag_dir: Path) -> dict[str, int] | None:
     if not isinstance(counts, dict) or not all(isinstance(k, str) and isinstance(v, int) and v >= 0
                                                for k, v in counts.items()):
         raise BagError(f"{path}: 'published' must map topic names to message counts")
-    return counts
+    sources = doc.get("uncounted_sources", [])
+    if not isinstance(sources, list) or not all(isinstance(x, str) and x for x in sources):
+        raise BagError(f"{path}: 'uncounted_sources' must be a list of publisher names")
+    return PublicationCounts(counts, tuple(sources))
 
 
-def unrecorded_losses(reader: "BagReader", published: dict[str, int], gaps: Sequence[Gap]) -> list[Gap]:
+def unrecorded_losses(reader: "BagReader", published: dict[str, int], gaps: Sequence[Gap],
+                      uncounted_sources: Sequence[str] = ()) -> list[Gap]:
     """Losses the sequence numbers cannot show: for each topic, the messages ``published`` (counted by the
     publishers) less those the bag holds and those ``gaps`` already account for; one ``unrecorded``
-    :class:`Gap` per topic where that is positive."""
+    :class:`Gap` per topic where that is positive.  On :data:`MULTI_PUBLISHER_TYPES` topics the bag's messages
+    from ``uncounted_sources`` (:func:`stream_source`; counted by nobody) are left out of what it holds."""
     infos = {t.name: t for t in reader.topic_infos()}
     seen: dict[str, int] = {}
     for g in gaps:
         seen[g.topic] = seen.get(g.topic, 0) + g.missing
     end_ns = reader.end_time_ns() if infos else 0
+    skip = set(uncounted_sources)
     out = []
     for name, n in sorted(published.items()):
         recorded = infos[name].message_count if name in infos else 0
+        per_source = bool(skip and recorded and infos[name].type in MULTI_PUBLISHER_TYPES)
+        if per_source:  # the counted publishers' messages only
+            recorded = sum(1 for m in reader.raw_messages([name], file_order=True)
+                           if stream_source(infos[name].type, m.data) not in skip)
         lost = int(n) - recorded - seen.get(name, 0)
         if lost <= 0:
             continue
         last = None
         if recorded:
             for m in reader.raw_messages([name], file_order=True):
+                if per_source and stream_source(infos[name].type, m.data) in skip:
+                    continue
                 if last is None or m.log_time_ns >= last.log_time_ns:
                     last = m
         out.append(Gap(name, lost, 0 if last is None else int(last.sequence), int(n),
@@ -1022,5 +1056,6 @@ def bag_gaps(reader: "BagReader") -> list[Gap] | None:
         gaps = SequenceGaps.from_reader(reader).gaps
     else:
         return None
-    published = read_publication_counts(reader.mcap_path.parent)
-    return gaps if published is None else gaps + unrecorded_losses(reader, published, gaps)
+    counts = read_publication_count_file(reader.mcap_path.parent)
+    return gaps if counts is None else gaps + unrecorded_losses(reader, counts.published, gaps,
+                                                                counts.uncounted_sources)

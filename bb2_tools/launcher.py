@@ -73,7 +73,7 @@ from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
 from bb2_ros.container import NODE_CLASSES
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, PUBLISHED_DIR_ENV, REALTIME_CONTROLLERS
-from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE
+from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE, RECORDER_STATUS_NAME, status_source
 from bb2_tools.graph_monitor import END_AT, GraphMonitor, domain_monitor, format_status
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
                                   Supervisor, parse_restart_policies)
@@ -635,6 +635,9 @@ def merge_publication_counts(bag: Path, counts_dir: Path, exits: Sequence[NodeEx
     uncounted = ([f"{e.name} (attempt {e.attempt}: {e.cause})" for e in node_exits if e.returncode < 0]
                  if len(node_records) < len(node_exits) else [])
     doc = {"published": dict(sorted(published.items())), "processes": records, "uncounted": uncounted}
+    if len(node_records) == len(records):  # a killed recorder counted none of its statuses in the bag: left out
+        fqn = f"/{namespace}/{RECORDER_NODE_NAME}" if namespace else f"/{RECORDER_NODE_NAME}"
+        doc["uncounted_sources"] = [status_source(RECORDER_STATUS_NAME, fqn)]
     tmp = bag / (PUBLICATION_COUNTS_FILE + ".tmp")
     tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     os.replace(tmp, bag / PUBLICATION_COUNTS_FILE)

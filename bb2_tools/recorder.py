@@ -67,8 +67,8 @@ from typing import Any, Sequence
 from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, GLOBAL_TOPICS, SCENE_TOPIC, SIM, ContractError, TopicSpec,
                                   check_namespace, message_class, node_topic_name, recorded_in_namespace,
                                   select_topics)
-from bb2_tools.bagfile import (GAPS_KEY, MULTI_PUBLISHER_TYPES, BagError, BagWriter, SequenceGaps, qos_entry,
-                                status_source, stream_source)
+from bb2_tools.bagfile import (GAPS_KEY, MULTI_PUBLISHER_TYPES, RECORDER_STATUS_NAME, BagError, BagWriter,
+                                SequenceGaps, qos_entry, status_source, stream_source)
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros import heap
 from bb2_ros.node_common import (NodeStatus, node_frame, restore_signals, stop_signals, take_all, time_msg,
@@ -352,12 +352,12 @@ class Recorder:
         # its own status, as every node's (``bb2/recorder`` on its bb2/status and /diagnostics), published from
         # spin_once (no executor here to run a timer): the first at the first spin
         self.status_period_s = float(status_period_s)
-        self._status = NodeStatus(self.node, "bb2/recorder", None, self._status_values) \
+        self._status = NodeStatus(self.node, RECORDER_STATUS_NAME, None, self._status_values) \
             if self.status_period_s > 0 else None
         self._next_status = time.monotonic()
         # its statuses come back to it over DDS and are recorded like any node's; it counts them (bag name -> n) so
         # that at the stop it takes its last ones, and its publication counts match the bag as the nodes' do
-        self._own_source = status_source("bb2/recorder", self.node.get_fully_qualified_name())
+        self._own_source = status_source(RECORDER_STATUS_NAME, self.node.get_fully_qualified_name())
         self.own_recorded: dict[str, int] = {}
         self._statuses_stopped = False
 

@@ -363,6 +363,41 @@ def test_publication_counts_show_the_losses_sequence_numbers_cannot(tmp_path):
         bag_gaps(BagReader(bag))
 
 
+
+def test_statuses_counted_by_nobody_do_not_hide_a_nodes_lost_statuses(tmp_path):
+    """A SIGKILLed recorder leaves its own statuses in its (recovered) bag but no count: the launcher names it in
+    ``uncounted_sources`` and bag_gaps leaves its messages out of the bag's side of /bb2/status, so the node's
+    statuses lost after its last recorded one are found exactly; without that the recorder's would make up for
+    them.  A malformed ``uncounted_sources`` is a BagError."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+    from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE, RECORDER_STATUS_NAME, bag_gaps
+
+    def array(name, fqn):
+        return serialize_message(DiagnosticArray(status=[DiagnosticStatus(name=name, hardware_id=fqn)]))
+
+    bag = tmp_path / "b"
+    with BagWriter(bag) as w:
+        w.add_topic("/bb2/status", "diagnostic_msgs/msg/DiagnosticArray", dds_sequence=True)
+        t = 0
+        for seq in (1, 2, 3):  # the simulator published 6: the last 3 never reached the recorder
+            w.write("/bb2/status", array("bb2/simulator", "/simulator"), t := t + 10**9, sequence=seq)
+        for seq in (1, 2, 3, 4):  # the recorder's own, counted by nobody (it was killed)
+            w.write("/bb2/status", array(RECORDER_STATUS_NAME, "/recorder"), t := t + 10**9, sequence=seq)
+    counts = {"published": {"/bb2/status": 6}}
+    (bag / PUBLICATION_COUNTS_FILE).write_text(json.dumps(counts))
+    assert bag_gaps(BagReader(bag)) == []  # 7 in the bag >= 6 published: the loss is hidden
+    (bag / PUBLICATION_COUNTS_FILE).write_text(json.dumps({**counts, "uncounted_sources": ["bb2/recorder"]}))
+    (gap,) = bag_gaps(BagReader(bag))
+    assert (gap.topic, gap.missing, gap.unrecorded) == ("/bb2/status", 3, True)
+    assert (gap.after_sequence, gap.before_sequence, gap.after_log_s) == (3, 6, 3.0)  # after the simulator's last
+    # another boat's recorder is another source: it does not stand for this one
+    (bag / PUBLICATION_COUNTS_FILE).write_text(json.dumps({**counts, "uncounted_sources": ["boat1/bb2/recorder"]}))
+    assert bag_gaps(BagReader(bag)) == []
+    (bag / PUBLICATION_COUNTS_FILE).write_text(json.dumps({**counts, "uncounted_sources": "bb2/recorder"}))
+    with pytest.raises(BagError, match="uncounted_sources"):
+        bag_gaps(BagReader(bag))
+
 def test_last_statuses_gives_each_nodes_last_status_by_name(tmp_path):
     """``BagReader.last_statuses``: each status name's key/values from the last array that carried it, whatever
     other nodes sent after it (the benchmarks and the graph tests read a run's final account this way)."""

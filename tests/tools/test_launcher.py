@@ -849,6 +849,7 @@ def test_publication_counts_are_merged_over_the_recorded_topics_and_a_killed_pro
     doc = json.loads((bag / PUBLICATION_COUNTS_FILE).read_text())
     assert doc["published"] == {"/bb2/planes/cmd": 10, "/bb2/state_native": 10, "/bb2/status": 5}, doc
     assert [r["process"] for r in doc["processes"]] == ["mixer", "mixer", "simulator"] and doc["uncounted"] == []
+    assert doc["uncounted_sources"] == ["bb2/recorder"]  # no recorder file: its statuses in the bag count for nobody
     # a boat in /boat1: its processes count resolved names, the file names the bag's (the contract's)
     boat = tmp_path / "boat_bag"
     boat.mkdir()
@@ -858,8 +859,10 @@ def test_publication_counts_are_merged_over_the_recorded_topics_and_a_killed_pro
         "/boat1/bb2/state_native": 7, "/boat1/clock": 8, "/diagnostics": 2, "/bb2/status": 99}}))
     assert L.merge_publication_counts(boat, boat_counts, [exit_("simulator", 0)],
                                       ["/bb2/state_native", "/clock", "/bb2/status"], "boat1") == ""
-    assert json.loads((boat / PUBLICATION_COUNTS_FILE).read_text())["published"] == {
+    boat_doc = json.loads((boat / PUBLICATION_COUNTS_FILE).read_text())
+    assert boat_doc["published"] == {
         "/bb2/state_native": 7, "/clock": 8}  # another boat's (root) /bb2/status is not this boat's
+    assert boat_doc["uncounted_sources"] == ["boat1/bb2/recorder"]  # the boat's recorder is /boat1/recorder
     (counts / "mixer-2.json").write_text('{"process": "mix')              # killed while writing: half a file
     note = L.merge_publication_counts(bag, counts, exits, topics)
     assert "publication counts missing from mixer (attempt 0: killed by SIGKILL)" in note, note
@@ -872,4 +875,5 @@ def test_publication_counts_are_merged_over_the_recorded_topics_and_a_killed_pro
     assert "publication counts missing from mixer (attempt 0: killed by SIGKILL)" in note, note
     doc = json.loads((bag / PUBLICATION_COUNTS_FILE).read_text())
     assert doc["published"]["/bb2/status"] == 2 + 4 and doc["uncounted"] == ["mixer (attempt 0: killed by SIGKILL)"]
+    assert "uncounted_sources" not in doc  # the recorder counted its own
     assert not list(bag.glob("*.tmp"))

@@ -233,6 +233,15 @@ def test_recorder_killed_stops_the_run_and_the_recovered_bag_tells_its_gaps(tmp_
 
     published = read_publication_counts(out)["/bb2/state_native"]
     assert published == r.message_counts["/bb2/state_native"] + lost, (published, lost)
+    # /bb2/status: the killed recorder's own statuses are in the bag but in no count; they are left out, so the
+    # nodes' statuses it did not record are all found (the recorder's would otherwise make up for as many)
+    from bb2_tools.bagfile import RECORDER_STATUS_NAME, stream_source
+
+    sources = [stream_source("diagnostic_msgs/msg/DiagnosticArray", m.data) for m in r.raw_messages("/bb2/status")]
+    assert RECORDER_STATUS_NAME in sources, sources
+    nodes_recorded = sum(1 for src in sources if src != RECORDER_STATUS_NAME)
+    status_lost = sum(g.missing for g in gaps if g.topic == "/bb2/status")
+    assert read_publication_counts(out)["/bb2/status"] == nodes_recorded + status_lost, (nodes_recorded, status_lost)
 
 
 def test_a_recorder_stopped_early_loses_the_rest_of_the_run_and_that_is_said(tmp_path):
