@@ -10,7 +10,7 @@ step of the exact batch ROM (:class:`bb2_sim.batch.BatchSimulator`, ``exact=True
 simulator), then each does its half after it (:meth:`MissionRunner.finish_tick`).  A mission that has ended is
 retired from the batch; the others go on.
 
-What flies together (:func:`batch_refusal` says why not): one hull and one physics profile for the batch, the
+What flies together (:func:`batch_refusal` says why not): one hull, physics profile and ``substeps`` for the batch, the
 authors' sea states (a regular wave per mission), no current, the stack flying on the truth (``navigation:
 truth``).  A mission whose ROM diverges in the batch ends in the same tick as alone, but its message says what the
 batch saw (a non-finite stage or state) where the single run may name the exception: fly it alone for that
@@ -97,8 +97,9 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[M
         why = batch_refusal(m)
         if why:
             raise ValueError(f"batch: mission {m.name!r} cannot fly in a batch: {why}")
-    if len({str(m.hull) for m in M}) > 1 or len({get_profile(m.profile) for m in M}) > 1:
-        raise ValueError("batch: the missions of a batch share one hull and one physics profile")
+    if len({str(m.hull) for m in M}) > 1 or len({get_profile(m.profile) for m in M}) > 1 \
+            or len({m.substeps for m in M}) > 1:
+        raise ValueError("batch: the missions of a batch share one hull, one physics profile and one substeps")
     t0 = time.perf_counter()
     if model is None:
         model = BB2Model(M[0].hull, profile=M[0].profile)
@@ -107,7 +108,8 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[M
     runners = [MissionRunner(m, model) for m in M]
     waves = [wave_for_sea_state(m.environment.sea.sea_state, model.params) for m in M]
     bm = BatchModel(model, waves, exact=True)
-    sim = BatchSimulator(bm, np.array([r.sim.x for r in runners]), h=runners[0].sim.h)
+    sim = BatchSimulator(bm, np.array([r.sim.x for r in runners]), h=runners[0].sim.h,
+                         substeps=runners[0].sim.substeps)
     views = [_BoatView(sim, i, model) for i in range(len(M))]
     for r, v in zip(runners, views):
         r.sim = v

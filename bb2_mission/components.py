@@ -125,7 +125,7 @@ def mission_components(m: Mission, model: Any = None) -> MissionComponents:
     x0 = initial_state(m)
     probes = hull_probes(model.surfaces)
     max_z = check_initial_state(m, model.surfaces, probes)
-    return MissionComponents(m, model, Simulator(model, x0), stack, x0, probes, float(max_z))
+    return MissionComponents(m, model, Simulator(model, x0, substeps=m.substeps), stack, x0, probes, float(max_z))
 
 
 def broaching_limit(m: Mission, probes: HullProbes) -> float:
@@ -180,7 +180,7 @@ def build_simulator(m: Mission, model: Any = None) -> Any:
 
     model = build_model(m) if model is None else model
     check_initial_state(m, model.surfaces)
-    return Simulator(model, initial_state(m))
+    return Simulator(model, initial_state(m), substeps=m.substeps)
 
 
 def build_mission_stack(m: Mission) -> Any:

@@ -958,7 +958,8 @@ class Simulator(Node):
                 "stepping_cpus": self.stepping_cpu_affinity if realtime else "",
                 "step_rate_hz": f"{self._rate_measured:.2f}",
                 "real_time_factor": f"{self._rate_measured * self.h:.3f}",
-                "duration_s": f"{self.duration_s:g}", "mission_file": self.mission_file}
+                "duration_s": f"{self.duration_s:g}", "mission_file": self.mission_file,
+                "rom_substeps": str(self.sim.substeps)}
         if self.diverged:
             vals["error"] = self.diverged
         vals.update({k: str(v) for k, v in self.gate.counters.items()})

@@ -28,6 +28,23 @@ def finite_float(text: str) -> float:
     return v
 
 
+def substeps_count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
+    return v
+
+
+SUBSTEPS_HELP = ("ROM ode3 steps per 0.05 s step (default 1: the authors' fixed step, numerically unstable from "
+                 "about 14 m/s; the stable speed grows about as sqrt(K): 2 to about 18 m/s, 4 to about 25)")
+UNSTABLE_SPEED_MPS = 12.0
+"""A divergence after 2 s above this speed is said with the hint to use ``--substeps`` (the authors' step is
+unstable from about 14 m/s; ``tests/sim/test_substeps.py``)."""
+
+
 def plane_list(text: str) -> tuple[float, ...]:
     parts = [p for p in text.replace(" ", "").split(",") if p != ""]
     vals = tuple(finite_float(p) for p in parts)
@@ -140,6 +157,7 @@ def add_maneuver_parser(sub) -> argparse.ArgumentParser:
                    help="open loop: the five plane angles (deg, the authors' plane signs)")
     m.add_argument("--duration", type=finite_float, metavar="T", help="simulated time (s)")
     m.add_argument("--profile", default="iowa", choices=["iowa", "corrected"], help="physics profile")
+    m.add_argument("--substeps", type=substeps_count, metavar="K", help=SUBSTEPS_HELP)
     m.add_argument("--hull-mesh", metavar="DIR", help="directory of hull surface files (STL/OBJ); default: "
                                                       "the BB2 hull generated from the table of offsets")
     m.add_argument("--out", metavar="FILE.csv", help="write the trajectory (reference CSV columns and eta_cg_m, "
@@ -218,7 +236,8 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
         s = maneuver_settings(a.name, depth=a.depth, depth_ref=a.depth_ref, heading_ref_deg=a.heading_ref_deg,
                               speed_mps=a.speed_mps, rps=a.rps, sea_state=a.sea_state, rudder_deg=a.rudder_deg,
                               amplitude_deg=a.amplitude_deg, check_deg=a.check_deg, sail_planes=a.sail_planes,
-                              planes_deg=a.planes_deg, duration=a.duration, profile=a.profile)
+                              planes_deg=a.planes_deg, duration=a.duration, profile=a.profile,
+                              substeps=a.substeps)
         env = environment_from_args(a, s.sea_state)
         if env is not None:
             s = replace(s, environment=env, sea_state=env.sea.sea_state if env.sea.authors_table else 0)
@@ -255,6 +274,13 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
     if res.error is not None:
         print(f"bb2-sim: {res.error}; the CSV keeps every row up to t = {sim_t:.2f} s"
               + (f" ({a.out})" if a.out else ""), file=sys.stderr)
+        t_s, u_mps = res.traj["t_s"], res.traj["U_m_s"]
+        # the speed the boat held over its last 2 s (not the blow-up's last rows)
+        speed = float(min(u for t, u in zip(t_s, u_mps) if t >= sim_t - 2.0)) if len(t_s) else 0.0
+        if speed > UNSTABLE_SPEED_MPS:
+            print(f"bb2-sim: the boat was at {speed:.1f} m/s, where the ROM's 0.05 s step in {s.substeps} ode3 "
+                  f"step(s) is numerically unstable (the authors' single step: from about 14 m/s); --substeps "
+                  f"{2 * s.substeps} integrates it in {2 * s.substeps}", file=sys.stderr)
     try:
         from .metrics import figures_for
         fig = figures_for(s.name, res.traj, **asdict(s))

@@ -19,7 +19,7 @@ import numpy as np
 import yaml
 
 from .autopilot_v12 import V12Autopilot, autopilot_v12_gains
-from .integrator import NonFiniteStateError, Simulator, StepRecord
+from .integrator import NonFiniteStateError, Simulator, StepRecord, check_substeps
 from .model import BB2Model
 from .xplane import plane_angles_deg
 
@@ -81,6 +81,7 @@ class ManeuverSettings:
     propeller: str = "constant"   # constant (the authors' rps, default) | speed-pi (the root model's speed PI)
     doc: str = ""
     environment: Any = None       # a bb2_sim.environment.Environment (irregular sea, current); None: sea_state
+    substeps: int = 1             # ROM ode3 steps per 0.05 s step (1: the authors'; bb2_sim.integrator)
 
     @property
     def rps_command(self) -> float:
@@ -133,6 +134,10 @@ def validate(s: ManeuverSettings) -> None:
             raise ManeuverError(f"{k} must be a finite number, got {v!r}")
     if len(s.planes_deg) != 5:
         raise ManeuverError(f"--planes-deg needs exactly 5 angles d1,d2,d3,d4,d5 (got {len(s.planes_deg)})")
+    try:
+        check_substeps(s.substeps)
+    except ValueError as e:
+        raise ManeuverError(str(e)) from None
     if not all(math.isfinite(v) for v in s.planes_deg):
         raise ManeuverError(f"plane angles must be finite, got {list(s.planes_deg)}")
     if s.duration <= 0:
@@ -302,7 +307,7 @@ def run_maneuver(s: ManeuverSettings, model: BB2Model | None = None, *, hull_mes
     import time
 
     model = model or build_model(s, hull_mesh)
-    sim = Simulator(model, s.initial_state())
+    sim = Simulator(model, s.initial_state(), substeps=s.substeps)
     cmd = ManeuverCommander(s)
     n_steps = int(round(s.duration / sim.h))
     rows: list[list[float]] = []

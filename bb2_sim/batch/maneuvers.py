@@ -7,6 +7,8 @@ sea state (the authors' table). Maneuvers with an ``environment`` (irregular sea
 """
 from __future__ import annotations
 
+import math
+
 from typing import Sequence
 
 import numpy as np
@@ -102,13 +104,16 @@ def batch_for_maneuvers(settings: Sequence[ManeuverSettings], model: BB2Model | 
         raise ValueError("batch: irregular seas not supported yet (maneuvers with an environment)")
     if len({get_profile(s.profile) for s in S}) > 1:
         raise ValueError("batch: the boats of a batch share one physics profile")
+    if len({s.substeps for s in S}) > 1:
+        raise ValueError("batch: the boats of a batch share one substeps")
     if model is None:
         model = BB2Model(hull_mesh, profile=S[0].profile)
     elif model.profile != get_profile(S[0].profile):
         raise ValueError(f"batch: the model's profile {model.profile.name!r} is not the maneuvers' "
                          f"{S[0].profile!r}")
     bm = BatchModel.from_sea_states(model, [s.sea_state for s in S], exact=exact)
-    return BatchSimulator(bm, np.array([s.initial_state() for s in S])), BatchManeuverCommander(S)
+    return (BatchSimulator(bm, np.array([s.initial_state() for s in S]), substeps=S[0].substeps),
+            BatchManeuverCommander(S))
 
 
 def _log_rows(rec, rows: np.ndarray, params, seas: list) -> np.ndarray:
@@ -130,7 +135,8 @@ def _log_rows(rec, rows: np.ndarray, params, seas: list) -> np.ndarray:
     out[:, 4:7] = x[:, 3:6] * RAD2DEG
     out[:, 7:10] = x[:, 6:9]
     out[:, 10:13] = x[:, 9:12] * RAD2DEG
-    out[:, 13] = np.sqrt(x[:, 6] ** 2 + x[:, 7] ** 2 + x[:, 8] ** 2)
+    # numpy scalars as record_row's: a scalar's ** 2 is libm's pow, within an ulp of an array's exact square
+    out[:, 13] = [math.sqrt(u ** 2 + v ** 2 + w ** 2) for u, v, w in x[:, 6:9]]
     out[:, 14:19] = rec.act.planes_deg[rows]
     out[:, 19:24] = rec.commands_planes_deg[boats]
     out[:, 24] = n

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..integrator import NonFiniteStateError
+from ..integrator import NonFiniteStateError, check_substeps
 from .actuators import BatchActuatorOutputs, BatchActuators
 from .model import BatchEvaluation, BatchModel
 
@@ -38,12 +38,15 @@ class BatchStepRecord:
 
 
 class BatchSimulator:
-    """Integrates a :class:`BatchModel` from x0 (N, 12) with ode3 at h, commands held per step."""
+    """Integrates a :class:`BatchModel` from x0 (N, 12) with ode3 at h (in ``substeps`` ode3 steps of h/substeps,
+    as :class:`bb2_sim.integrator.Simulator`), commands held per step."""
 
-    def __init__(self, model: BatchModel, x0: np.ndarray, t0: float = 0.0, h: float | None = None):
+    def __init__(self, model: BatchModel, x0: np.ndarray, t0: float = 0.0, h: float | None = None,
+                 substeps: int = 1):
         self.model = model
         self.n_boats = model.n_boats
         self.h = float(h if h is not None else model.params.h)
+        self.substeps = check_substeps(substeps)
         self.t0 = float(t0)
         self.n = 0
         self.x = np.array(x0, dtype=float)
@@ -113,24 +116,35 @@ class BatchSimulator:
         with np.errstate(all="ignore"):
             act.rotations = self._rotations = self.model.pressure.prepare(act.planes_deg, prev)
         f = self.model.evaluate
-        with np.errstate(all="ignore"):
-            ev1 = f(t, x, act, self.dmem, boats)
-            self.dmem.store(t, ev1.added_mass_inputs, boats)
-            k1 = ev1.xdot
-            x2 = x + (h * 0.5) * k1
-            k2 = f(t + h * 0.5, x2, act, self.dmem, boats).xdot
-            x3 = x + (h * 0.75) * k2
-            k3 = f(t + h * 0.75, x3, act, self.dmem, boats).xdot
-            x_new = x + h * (2.0 / 9.0 * k1 + 1.0 / 3.0 * k2 + 4.0 / 9.0 * k3)
-        ok = np.isfinite(x_new).all(axis=1)
         rows = np.arange(len(x)) if boats is None else boats
+        hs = h / self.substeps if self.substeps > 1 else h
+        failed: dict[int, NonFiniteStateError] = {}  # row -> the error of its first non-finite stage
+        ev1 = None
+        for sub in range(self.substeps):  # (a boat gone non-finite in a sub-step is carried to the end as NaN)
+            ts = t + sub * hs if sub else t
+            with np.errstate(all="ignore"):
+                ev = f(ts, x, act, self.dmem, boats)
+                self.dmem.store(ts, ev.added_mass_inputs, boats)
+                k1 = ev.xdot
+                x2 = x + (hs * 0.5) * k1
+                k2 = f(ts + hs * 0.5, x2, act, self.dmem, boats).xdot
+                x3 = x + (hs * 0.75) * k2
+                k3 = f(ts + hs * 0.75, x3, act, self.dmem, boats).xdot
+                x_new = x + hs * (2.0 / 9.0 * k1 + 1.0 / 3.0 * k2 + 4.0 / 9.0 * k3)
+            ev1 = ev if ev1 is None else ev1
+            ok = np.isfinite(x_new).all(axis=1)
+            if not ok.all():
+                ok2, ok3 = np.isfinite(x2).all(axis=1), np.isfinite(x3).all(axis=1)
+                for j in np.flatnonzero(~ok):
+                    if j not in failed:
+                        tb, xb = (ts + hs * 0.5, x2[j]) if not ok2[j] else (ts + hs * 0.75, x3[j]) \
+                            if not ok3[j] else (ts + hs, x_new[j])
+                        failed[int(j)] = NonFiniteStateError(tb, xb.copy())
+            x = x_new
         newly = np.empty(0, dtype=int)
         if not ok.all():
-            ok2, ok3 = np.isfinite(x2).all(axis=1), np.isfinite(x3).all(axis=1)
-            for j in np.flatnonzero(~ok):
-                tb, xb = (t + h * 0.5, x2[j]) if not ok2[j] else (t + h * 0.75, x3[j]) if not ok3[j] \
-                    else (t + h, x_new[j])
-                self.errors[int(rows[j])] = NonFiniteStateError(tb, xb.copy())
+            for j, err in failed.items():
+                self.errors[int(rows[j])] = err
             newly = rows[~ok]
             self.diverged[newly] = True
         rec = BatchStepRecord(t, self.x.copy(), planes, rps, rows, act, ev1, newly)

@@ -209,9 +209,9 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
 
     Runs that can fly together, at least :data:`BATCH_MIN` of them, fly as one batch of the batch ROM in its exact
     mode (bit for bit what each gives alone, so the same figures whatever the chunking, the engine or the number
-    of workers): maneuvers of one physics profile and one duration in the authors' sea states (no
-    ``environment``), with :func:`bb2_sim.batch.maneuvers.run_maneuvers_batch`; missions of one hull and profile
-    in the authors' sea states, without current, flying on the truth, with
+    of workers): maneuvers of one physics profile, duration and ``substeps`` in the authors' sea states (no
+    ``environment``), with :func:`bb2_sim.batch.maneuvers.run_maneuvers_batch`; missions of one hull, profile and
+    ``substeps`` in the authors' sea states, without current, flying on the truth, with
     :func:`bb2_mission.batch.run_missions_batch` (each mission's stack still steps alone).  A run that diverged in
     the batch is flown again alone (its message is then the single run's), and so is every other run.  Each row's
     wall time is its share of its batch's."""
@@ -223,7 +223,7 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
             from bb2_mission.batch import batch_refusal
 
             m = build_mission(spec, spec.document(i))
-            return m, ((str(m.hull), str(m.profile)) if batch_refusal(m) is None else None)
+            return m, ((str(m.hull), str(m.profile), m.substeps) if batch_refusal(m) is None else None)
 
         def fly_missions(ms: list[Any]) -> list[Any]:
             from bb2_mission.batch import run_missions_batch
@@ -240,7 +240,7 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
 
     def maneuver_of(i: int) -> Any:
         s = maneuver_settings_of(spec, spec.document(i))
-        return s, ((s.profile, s.duration) if s.environment is None else None)
+        return s, ((s.profile, s.duration, s.substeps) if s.environment is None else None)
 
     def fly_maneuvers(settings: list[Any]) -> list[Any]:
         from bb2_sim.batch.maneuvers import run_maneuvers_batch

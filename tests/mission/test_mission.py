@@ -171,6 +171,9 @@ def test_broaching_stops_and_reports(model):
     ({"path": "circle_r400", "sea_state": 11}, "sea state"),
     ({"path": "circle_r400", "terrain": "moon"}, "terrain 'moon'"),
     ({"path": "no_such_path"}, "no such path file or shipped path"),
+    ({"path": "circle_r400", "substeps": 0}, "substeps must be an integer >= 1"),
+    ({"path": "circle_r400", "substeps": 1.5}, "substeps must be an integer >= 1"),
+    ({"path": "circle_r400", "substeps": True}, "substeps must be an integer >= 1"),
 ])
 def test_bad_inputs_give_one_clear_error(doc, words):
     with pytest.raises(MissionError) as e:

@@ -12,6 +12,7 @@ bit equal on every machine.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -230,6 +231,41 @@ def test_a_diverging_boat_is_reported_frozen_and_leaves_the_others_alone(calm_mo
     _assert_close(batch.x[None, [0, 2]], xs)
 
 
+
+def test_sub_steps_in_a_batch_equal_single_runs_and_a_boat_diverging_in_a_sub_step_is_said_alike(calm_model):
+    """``substeps``: boats in seas and calm, one fast (15 m/s at 4 rps: only sub-steps fly it), one at 25 m/s at
+    full propeller diverging within a second -- in the same step, with the same error and stage time as its single
+    run, frozen there -- and the others equal to their single runs (bit for bit in the exact mode)."""
+    seas = [0, 5, 3, 0]
+    x0 = _mixed_x0()[:4]
+    x0[0, 6], x0[3, 6] = -15.0, -25.0
+    planes, rps = PLANES[:4], np.array([4.0, RPS[1], RPS[2], 10.0])
+    batch = BatchSimulator(BatchModel.from_sea_states(calm_model, seas), x0, substeps=2)
+    exact = BatchSimulator(BatchModel.from_sea_states(calm_model, seas, exact=True), x0, substeps=2)
+    singles = [Simulator(_single(calm_model, s), x0[i], substeps=2) for i, s in enumerate(seas)]
+    n = 200
+    xb, xe, xs = np.empty((n, 4, 12)), np.empty((n, 4, 12)), np.empty((n, 4, 12))
+    single_error = None
+    for k in range(n):
+        rec = batch.step(planes, rps)
+        exact.step(planes, rps)
+        for i, sim in enumerate(singles):
+            if i == 3 and single_error is not None:
+                continue
+            try:
+                sim.step(planes[i], rps[i])
+            except Exception as e:  # noqa: BLE001 - compared with the batch's below
+                single_error = e
+                assert rec.newly_diverged.tolist() == [3] and k < 50
+        xb[k], xe[k] = batch.x, exact.x
+        xs[k] = [sim.x for sim in singles]
+    assert single_error is not None and batch.diverged.tolist() == [False, False, False, True]
+    for b in (batch, exact):
+        assert str(b.errors[3]) == str(single_error) and b.errors[3].t == single_error.t  # the same stage
+    _assert_close(xb, xs)
+    _assert_exact(xe, xs)
+    assert -xs[-1, 0, 6] > 15.0
+
 # ------------------------------------------------------------------------------------------------ (d) bad input
 def test_boats_retired_mid_run_leave_the_others_added_mass_memories_alone(calm_model):
     """Boats in seas and in calm water; two retired mid-run (one in a sea): the others' Derivative blocks (the
@@ -288,11 +324,13 @@ def test_bad_shapes_and_refused_environments_give_clear_errors(calm_model):
 
 
 # ------------------------------------------------------------------------------------------------ (e) whole runs
-def test_maneuvers_flown_together_give_each_run_maneuver_result(calm_model):
+@pytest.mark.parametrize("substeps", [1, 2])
+def test_maneuvers_flown_together_give_each_run_maneuver_result(calm_model, substeps):
     """``run_maneuvers_batch``: what ``run_maneuver`` gives each maneuver alone -- trajectory (every logged column,
     the sea's elevation included), zig-zag reversals, divergence -- bit for bit in the exact mode, with boats of
-    different durations and one that diverges at its first step (at rest: quirk Q13)."""
-    from bb2_sim.batch.maneuvers import run_maneuvers_batch
+    different durations and one that diverges at its first step (at rest: quirk Q13); with the ROM's step in one
+    ode3 step (the authors') and in two (``substeps``)."""
+    from bb2_sim.batch.maneuvers import batch_for_maneuvers, run_maneuvers_batch
     from bb2_sim.maneuvers import OUTPUT_COLUMNS, run_maneuver
 
     settings = [
@@ -303,6 +341,9 @@ def test_maneuvers_flown_together_give_each_run_maneuver_result(calm_model):
         maneuver_settings("self-propulsion", propeller="speed-pi", speed_mps=0.0, duration=5.0),
         maneuver_settings("depth-heading", duration=11.0),
     ]
+    settings = [replace(s, substeps=substeps) for s in settings]
+    with pytest.raises(ValueError, match="share one substeps"):
+        batch_for_maneuvers([settings[0], replace(settings[1], substeps=substeps + 1)], calm_model)
     batch = run_maneuvers_batch(settings, calm_model)
     for s, b in zip(settings, batch):
         one = run_maneuver(s, _single(calm_model, s.sea_state))

@@ -43,6 +43,8 @@ def test_short_turning_circle_writes_csv_plot_and_figures(tmp_path):
     (["maneuver", "hzz", "--rps", "-1"], "rps must be >= 0"),
     (["maneuver", "hzz", "--profile", "matlab"], "invalid choice"),
     (["maneuver", "hzz", "--sail-planes", "half"], "invalid choice"),
+    (["maneuver", "hzz", "--substeps", "0"], "--substeps: must be >= 1"),
+    (["maneuver", "hzz", "--substeps", "1.5"], "--substeps: not an integer"),
 ])
 def test_bad_input_one_clear_error_exit_2(args, needle):
     p = run(*args)
@@ -69,6 +71,22 @@ def test_diverging_run_stops_with_a_message_and_keeps_the_csv(tmp_path):
     t_last = float(rows[-1][0])
     assert 60.0 < t_last < 300.0
     assert all(all(v not in ("nan", "inf", "-inf") for v in r) for r in rows[1:])
+    assert "--substeps" not in p.stderr  # a slow boat: not the step's numerical limit
+
+
+def test_a_fast_boat_diverging_at_the_authors_step_is_told_of_substeps_which_fly_it(tmp_path):
+    """15 m/s at 4 rps: the authors' 0.05 s step goes numerically unstable within seconds; the message says so
+    and names ``--substeps 2``, which flies the same maneuver to the end (rows still every 0.1 s)."""
+    args = ["maneuver", "open-loop", "--speed-mps", "15", "--rps", "4", "--duration", "20", "--quiet"]
+    p = run(*args)
+    assert p.returncode == 1 and "diverged at t =" in p.stderr, p.stderr
+    assert "numerically unstable" in p.stderr and "--substeps 2 integrates it in 2" in p.stderr, p.stderr
+    out = tmp_path / "fast.csv"
+    p = run(*args, "--substeps", "2", "--out", str(out))
+    assert p.returncode == 0 and "diverged" not in p.stderr, p.stderr
+    rows = list(csv.reader(out.open()))
+    assert len(rows) == 1 + 201 and float(rows[-1][0]) == pytest.approx(20.0)
+    assert float(rows[-1][rows[0].index("U_m_s")]) > 15.0
 
 
 def test_authors_surfaces_accepted_as_user_mesh(shared, tmp_path):

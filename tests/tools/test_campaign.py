@@ -526,6 +526,28 @@ def test_mission_batches_give_the_table_of_runs_flown_one_by_one(tmp_path):
     assert {row["sea_state"] for row in alone} == {0, 3, 5}
 
 
+
+def test_substeps_varied_fly_each_value_as_its_own_batch_with_the_single_runs_rows(monkeypatch):
+    """``substeps`` (ROM ode3 steps per 0.05 s step) is a mission field like any: varied as a grid, the runs of each
+    value fly together (one batch each, no single run), each row equal to its run flown alone; the same draws with
+    1 and 2 sub-steps give close, not equal, figures."""
+    from bb2_tools.campaign import worker
+
+    spec = parse_spec({**MISSION_BATCH_SPEC, "samples": worker.BATCH_MIN,  # a batch of each value
+                       "vary": {"duration_s": 3, "sea_state": {"choice": [0, 3, 5]},
+                                "stack.guidance.d_m": {"uniform": [150.0, 350.0]}, "substeps": [1, 2]}})
+    alone, single = _spy_single_runs(monkeypatch, worker)
+    rows = worker.run_tasks(spec, list(range(2 * worker.BATCH_MIN)))
+    assert alone == [] and [r["substeps"] for r in rows[:4]] == [1, 2, 1, 2]
+    assert all(r["status"] == "ok" for r in rows), rows
+
+    def same(row):
+        return {k: v for k, v in row.items() if k != "wall_time_s"}
+
+    assert [same(single(spec, i)) for i in (0, 1)] == [same(r) for r in rows[:2]]
+    one, two = rows[0]["rms_vertical"], rows[1]["rms_vertical"]  # the same sample's draws
+    assert one != two and abs(one - two) < 1e-3 * max(abs(one), 1.0), (one, two)
+
 def test_chunks_are_equal_batches_to_the_end():
     """The engines cut a campaign into equal chunks of at most --batch, a multiple of the workers in number, from the
     campaign's size (a share recomputed from the runs left shrank the last chunks below BATCH_MIN: 64 runs on two
