@@ -365,9 +365,12 @@ def mission_from_dict(doc: Mapping[str, Any], *, base_dir: Path | None = None, n
             sea_state = sea.sea_state
         profile = doc.get("profile", "iowa")
         get_profile(profile)
-        substeps = doc.get("substeps", 1)
-        if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
-            raise MissionError(f"substeps must be an integer >= 1 (ROM ode3 steps per 0.05 s step), got {substeps!r}")
+        from bb2_sim.integrator import check_substeps
+
+        try:
+            substeps = check_substeps(doc.get("substeps", 1))
+        except ValueError as e:
+            raise MissionError(f"{e} (ROM ode3 steps per 0.05 s step)") from None
         hull = doc.get("hull")
         if hull is not None:
             f = _resolve_file(str(hull), base_dir)

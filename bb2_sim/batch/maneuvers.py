@@ -8,7 +8,6 @@ sea state (the authors' table). Maneuvers with an ``environment`` (irregular sea
 from __future__ import annotations
 
 import math
-
 from typing import Sequence
 
 import numpy as np
