@@ -28,14 +28,20 @@ def finite_float(text: str) -> float:
     return v
 
 
-def substeps_count(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
-    return v
+def int_at_least(low: int):
+    """An argparse type: an integer >= ``low`` ("not an integer: 'x'", "must be >= 1, got 0")."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if v < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {v}")
+        return v
+    return parse
+
+
+positive_int = int_at_least(1)
 
 
 SUBSTEPS_HELP = ("ROM ode3 steps per 0.05 s step (default 1: the authors' fixed step, numerically unstable from "
@@ -157,7 +163,7 @@ def add_maneuver_parser(sub) -> argparse.ArgumentParser:
                    help="open loop: the five plane angles (deg, the authors' plane signs)")
     m.add_argument("--duration", type=finite_float, metavar="T", help="simulated time (s)")
     m.add_argument("--profile", default="iowa", choices=["iowa", "corrected"], help="physics profile")
-    m.add_argument("--substeps", type=substeps_count, metavar="K", help=SUBSTEPS_HELP)
+    m.add_argument("--substeps", type=positive_int, metavar="K", help=SUBSTEPS_HELP)
     m.add_argument("--hull-mesh", metavar="DIR", help="directory of hull surface files (STL/OBJ); default: "
                                                       "the BB2 hull generated from the table of offsets")
     m.add_argument("--out", metavar="FILE.csv", help="write the trajectory (reference CSV columns and eta_cg_m, "

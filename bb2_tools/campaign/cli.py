@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from bb2_sim.cli import int_at_least, positive_int
 from bb2_tools.campaign.errors import SpecError
 
 PROG = "bb2-campaign"
@@ -26,24 +27,7 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
-    return v
-
-
-def _index(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
-    return v
+_index = int_at_least(0)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -55,9 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="local: a process pool on this machine (default); ray: a Ray cluster")
     p.add_argument("--address", metavar="ADDR", help="ray: 'auto' or HOST:PORT of a running cluster "
                                                       "(default: start a Ray instance for this driver)")
-    p.add_argument("--workers", type=_positive_int, metavar="N",
+    p.add_argument("--workers", type=positive_int, metavar="N",
                    help="local: worker processes (default: CPUs); ray: runs in flight (default: 2 x CPUs)")
-    p.add_argument("--batch", type=_positive_int, metavar="N", default=None,
+    p.add_argument("--batch", type=positive_int, metavar="N", default=None,
                    help="the most runs one worker flies together in the batch ROM (maneuvers; missions in the "
                         "authors' sea states without current), bit for bit what each gives alone (default 128; 1: "
                         "every run alone; not with --graph)")
