@@ -46,9 +46,6 @@ positive_int = int_at_least(1)
 
 SUBSTEPS_HELP = ("ROM ode3 steps per 0.05 s step (default 1: the authors' fixed step, numerically unstable from "
                  "about 14 m/s; the stable speed grows about as sqrt(K): 2 to about 18 m/s, 4 to about 25)")
-UNSTABLE_SPEED_MPS = 12.0
-"""A divergence after 2 s above this speed is said with the hint to use ``--substeps`` (the authors' step is
-unstable from about 14 m/s; ``tests/sim/test_substeps.py``)."""
 
 
 def plane_list(text: str) -> tuple[float, ...]:
@@ -280,13 +277,11 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
     if res.error is not None:
         print(f"bb2-sim: {res.error}; the CSV keeps every row up to t = {sim_t:.2f} s"
               + (f" ({a.out})" if a.out else ""), file=sys.stderr)
-        t_s, u_mps = res.traj["t_s"], res.traj["U_m_s"]
-        # the speed the boat held over its last 2 s (not the blow-up's last rows)
-        speed = float(min(u for t, u in zip(t_s, u_mps) if t >= sim_t - 2.0)) if len(t_s) else 0.0
-        if speed > UNSTABLE_SPEED_MPS:
-            print(f"bb2-sim: the boat was at {speed:.1f} m/s, where the ROM's 0.05 s step in {s.substeps} ode3 "
-                  f"step(s) is numerically unstable (the authors' single step: from about 14 m/s); --substeps "
-                  f"{2 * s.substeps} integrates it in {2 * s.substeps}", file=sys.stderr)
+        from .integrator import substeps_hint
+
+        hint = substeps_hint(res.traj["t_s"], res.traj["U_m_s"], s.substeps, "--substeps")
+        if hint:
+            print(f"bb2-sim: {hint}", file=sys.stderr)
     try:
         from .metrics import figures_for
         fig = figures_for(s.name, res.traj, **asdict(s))

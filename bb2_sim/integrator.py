@@ -16,6 +16,7 @@ the actuators and every output stay at the rate 1/h.  k = 1 is the reference's s
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -53,6 +54,27 @@ def check_substeps(substeps) -> int:
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
         raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
     return int(substeps)
+
+
+UNSTABLE_SPEED_MPS = 12.0
+"""A run that diverged after holding more than this speed for its last 2 s is told to try more sub-steps (the
+authors' step is numerically unstable from about 14 m/s; ``tests/sim/test_substeps.py``)."""
+
+
+def substeps_hint(t_s: Sequence[float], speed_mps: Sequence[float], substeps: int, option: str) -> str:
+    """For a run that diverged: '' or one line advising ``option`` with twice the ``substeps`` when the boat held
+    more than :data:`UNSTABLE_SPEED_MPS` over its last 2 s (``t_s``, ``speed_mps``: its logged times and speeds;
+    the blow-up's own last rows do not count, so a boat that capsized at low speed gets no such hint)."""
+    t = np.asarray(t_s, dtype=float)
+    u = np.asarray(speed_mps, dtype=float)
+    if t.size == 0:
+        return ""
+    held = float(np.min(u[t >= t[-1] - 2.0]))
+    if not held > UNSTABLE_SPEED_MPS:
+        return ""
+    return (f"the boat held {held:.1f} m/s, where the ROM's 0.05 s step in {substeps} ode3 step(s) is numerically "
+            f"unstable (the authors' single step: from about 14 m/s); {option} {2 * substeps} integrates it in "
+            f"{2 * substeps}")
 
 
 class Simulator:

@@ -92,5 +92,11 @@ def run_mission_cli(a: argparse.Namespace) -> int:
             print(f"  figures: {', '.join(str(f) for f in figs.values())}")
     if res.summary.event is not None:
         print(f"bb2-sim: mission {m.name} failed: {res.summary.event}", file=sys.stderr)
+        if str(res.summary.end_reason) == "diverged":
+            from bb2_sim.integrator import substeps_hint
+
+            hint = substeps_hint(res.traj["t_s"], res.traj["U_m_s"], m.substeps, "the mission's substeps:")
+            if hint:
+                print(f"bb2-sim: {hint}", file=sys.stderr)
         return 1
     return 0
