@@ -43,6 +43,7 @@ class Listener:
         self.states: dict[float, np.ndarray] = {}
         self.state_wall: list[tuple[float, float]] = []
         self.status_names: set[str] = set()
+        self.simulator_status: dict[str, str] = {}
         deep_sensor = QoSProfile(depth=10000, reliability=ReliabilityPolicy.BEST_EFFORT)
         deep_reliable = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
         self.node.create_subscription(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", self.odom.append,
@@ -50,13 +51,18 @@ class Listener:
         self.node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
                                       self._on_state, deep_reliable)
         self.node.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
-                                      lambda m: self.status_names.update(s.name for s in m.status),
-                                      qos_profile("/bb2/status"))
+                                      self._on_status, qos_profile("/bb2/status"))
         self.executor = SingleThreadedExecutor(context=self.ctx)
         self.executor.add_node(self.node)
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
+
+    def _on_status(self, msg) -> None:
+        self.status_names.update(s.name for s in msg.status)
+        for s in msg.status:
+            if s.name == "bb2/simulator":
+                self.simulator_status = {kv.key: kv.value for kv in s.values}
 
     def _on_state(self, msg) -> None:
         s = cv.state_native_from_message(msg)
@@ -116,6 +122,7 @@ def test_graph_lockstep_equals_library_runner(tmp_path, state_source, substeps):
     # every node was up and reporting
     assert {"bb2/simulator", "bb2/planner", "bb2/path_following", "bb2/l1_autopilot", "bb2/mixer"} \
         <= listener.status_names, listener.status_names
+    assert listener.simulator_status.get("rom_substeps") == str(substeps), listener.simulator_status
 
     # the simulator's own trajectory: every step, equal to the library runner
     traj = np.loadtxt(csv_file, delimiter=",", skiprows=1)
