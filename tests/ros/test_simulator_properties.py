@@ -164,7 +164,7 @@ class Bench:
         with self.lock:
             return np.array([p for w, p in self.prop_state if w >= t0])
 
-    def wait_settled(self, planes_rad: float, timeout: float = 5.0) -> None:
+    def wait_settled(self, planes_rad: float, timeout: float = 15.0) -> None:
         """Until the applied planes and propeller equal the valid command (the rate limiters converged)."""
         t0 = time.monotonic()
         while time.monotonic() - t0 < timeout:
