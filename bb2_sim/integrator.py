@@ -116,13 +116,10 @@ class Simulator:
             raise ValueError(f"commands must be 5 finite plane angles and finite rps/ballast, got "
                              f"{planes_cmd.tolist()}, {rps_cmd}, {dmass_cmd_kg}")
         act = self.actuators.step(planes_cmd, rps_cmd, dmass_cmd_kg)
-        if self.substeps == 1:
-            ev1, x_new = self._ode3(t, x, h, act)
-        else:
-            hs = h / self.substeps
-            ev1, x_new = self._ode3(t, x, hs, act)
-            for j in range(1, self.substeps):
-                x_new = self._ode3(t + j * hs, x_new, hs, act)[1]
+        hs = h / self.substeps  # (h itself, exactly, for the authors' single step)
+        ev1, x_new = self._ode3(t, x, hs, act)
+        for j in range(1, self.substeps):
+            x_new = self._ode3(t + j * hs, x_new, hs, act)[1]
         rec = StepRecord(t, x.copy(), planes_cmd, float(rps_cmd), act, ev1)
         self.x = x_new
         self.n += 1

@@ -911,24 +911,32 @@ def unrecorded_losses(reader: "BagReader", published: dict[str, int], gaps: Sequ
     out = []
     for name, n in sorted(published.items()):
         recorded = infos[name].message_count if name in infos else 0
-        per_source = bool(skip and recorded and infos[name].type in MULTI_PUBLISHER_TYPES)
-        if per_source:  # the counted publishers' messages only
-            recorded = sum(1 for m in reader.raw_messages([name], file_order=True)
-                           if stream_source(infos[name].type, m.data) not in skip)
+        last = None
+        if skip and recorded and infos[name].type in MULTI_PUBLISHER_TYPES:  # the counted publishers' messages only
+            recorded, last = _counted_messages(reader, name, infos[name].type, skip)
         lost = int(n) - recorded - seen.get(name, 0)
         if lost <= 0:
             continue
-        last = None
-        if recorded:
-            for m in reader.raw_messages([name], file_order=True):
-                if per_source and stream_source(infos[name].type, m.data) in skip:
-                    continue
-                if last is None or m.log_time_ns >= last.log_time_ns:
-                    last = m
+        if last is None and recorded:
+            last = _counted_messages(reader, name, infos[name].type, set())[1]
         out.append(Gap(name, lost, 0 if last is None else int(last.sequence), int(n),
                        None if last is None else last.log_time_ns * 1e-9, end_ns * 1e-9,
                        after_publish_s=None if last is None else last.publish_time_ns * 1e-9, kind=UNRECORDED))
     return out
+
+
+def _counted_messages(reader: "BagReader", topic: str, type_name: str, skip: set[str]
+                      ) -> tuple[int, "RawMessage | None"]:
+    """The messages of ``topic`` in the bag but those of the publishers in ``skip`` (:func:`stream_source`): their
+    number and the last logged (one pass over the topic)."""
+    n, last = 0, None
+    for m in reader.raw_messages([topic], file_order=True):
+        if skip and stream_source(type_name, m.data) in skip:
+            continue
+        n += 1
+        if last is None or m.log_time_ns >= last.log_time_ns:
+            last = m
+    return n, last
 
 
 MULTI_PUBLISHER_TYPES = ("diagnostic_msgs/msg/DiagnosticArray",)

@@ -117,11 +117,10 @@ class BatchSimulator:
             act.rotations = self._rotations = self.model.pressure.prepare(act.planes_deg, prev)
         f = self.model.evaluate
         rows = np.arange(len(x)) if boats is None else boats
-        hs = h / self.substeps if self.substeps > 1 else h
+        hs = h / self.substeps  # (h itself, exactly, for the authors' single step)
         failed: dict[int, NonFiniteStateError] = {}  # row -> the error of its first non-finite stage
-        ev1 = None
         for sub in range(self.substeps):  # (a boat gone non-finite in a sub-step is carried to the end as NaN)
-            ts = t + sub * hs if sub else t
+            ts = t + sub * hs
             with np.errstate(all="ignore"):
                 ev = f(ts, x, act, self.dmem, boats)
                 self.dmem.store(ts, ev.added_mass_inputs, boats)
@@ -131,7 +130,8 @@ class BatchSimulator:
                 x3 = x + (hs * 0.75) * k2
                 k3 = f(ts + hs * 0.75, x3, act, self.dmem, boats).xdot
                 x_new = x + hs * (2.0 / 9.0 * k1 + 1.0 / 3.0 * k2 + 4.0 / 9.0 * k3)
-            ev1 = ev if ev1 is None else ev1
+            if sub == 0:
+                ev1 = ev  # the major evaluation (the record's loads)
             ok = np.isfinite(x_new).all(axis=1)
             if not ok.all():
                 ok2, ok3 = np.isfinite(x2).all(axis=1), np.isfinite(x3).all(axis=1)
