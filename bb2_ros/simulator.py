@@ -116,6 +116,7 @@ counter in the status.  This node turns messages into the gate's inputs and its 
 """
 from __future__ import annotations
 
+import collections
 import csv
 import dataclasses
 import math
@@ -141,7 +142,7 @@ from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS, mountings_json, sample
 from bb2_msgs_py.contract import (FRAME_BASE_LINK, FRAME_ODOM, PLANE_JOINTS, PROPELLER_JOINT, frame_prefix,
                                   message_class, node_topic_name, qos_profile, recorded_in_namespace,
                                   vehicle_frame)
-from bb2_sim.integrator import NonFiniteStateError
+from bb2_sim.integrator import NonFiniteStateError, substeps_hint
 from bb2_sim.state import VehicleState
 
 from bb2_ros import heap
@@ -378,6 +379,10 @@ class Simulator(Node):
 
         self.finished = False
         self.diverged = ""
+        # (t, speed) of the states stepped from over the last 2 s and a little more: a divergence at a speed where
+        # the ROM's step is numerically unstable is said with the mission's ``substeps`` that would fly it
+        self._recent_speeds: collections.deque[tuple[float, float]] = collections.deque(
+            maxlen=int(math.ceil(2.0 / self.h)) + 2)
         self.done = False
         self._final_wait_since: float | None = None  # wall s the finished run began waiting for the recorder
         self._status_wait_since: float | None = None  # wall s it began waiting for its statuses to be delivered
@@ -822,6 +827,8 @@ class Simulator(Node):
     def _advance(self, planes_deg: np.ndarray, rps: float) -> None:
         self.gate.stepped()
         state = VehicleState.from_vector(self.sim.t, self.sim.x)
+        u, v, w = state.v_body_native
+        self._recent_speeds.append((state.t, math.sqrt(u * u + v * v + w * w)))
         # /clock goes to t_n+1 now, before the integration: the nodes on sim time (every controller) take it
         # while the ROM steps, not when the state of t_n+1 comes and they must answer it (recorders log the
         # state of t_n+1 at t_n+1 all the same)
@@ -829,9 +836,10 @@ class Simulator(Node):
         try:
             rec = self.sim.step(planes_deg, rps)
         except (NonFiniteStateError, ValueError) as exc:
-            self.diverged = str(exc)
+            hint = substeps_hint(*zip(*self._recent_speeds), self.sim.substeps, "the mission's substeps:")
+            self.diverged = f"{exc}; {hint}" if hint else str(exc)
             self.exit_code = 1
-            self.get_logger().error(f"simulation stopped: {exc}")
+            self.get_logger().error(f"simulation stopped: {self.diverged}")
             self._publish_status()
             self.done = self.exit_at_end
             return

@@ -550,8 +550,9 @@ def _run_end(run: BagRun, tick: np.ndarray, mission: Any, probes: Any, cl: np.nd
     from bb2_mission import limit_event
     from bb2_mission.components import broaching_limit
 
-    if run.status_value("state", "bb2/simulator") == "diverged":
-        return RunEnd("diverged", None, "diverged: " + (run.status_value("error", "bb2/simulator") or "(no detail)"))
+    if run.status_value("state", "bb2/simulator") == "diverged":  # at the last state it stepped from (the runner's)
+        return RunEnd("diverged", float(run.t[-1]) if len(run.t) else None,
+                      "diverged: " + (run.status_value("error", "bb2/simulator") or "(no detail)"))
     bad = np.flatnonzero(~np.isfinite(run.x).all(axis=1))
     if len(bad):
         t = float(run.t[bad[0]])

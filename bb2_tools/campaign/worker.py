@@ -96,6 +96,8 @@ def _mission_outcome(spec: CampaignSpec, res: Any) -> tuple[str, str, dict[str, 
     s = res.summary
     status = END_STATUS.get(str(s.end_reason), "error")
     message = _one_line(str(s.event)) if s.event is not None else ""
+    if status == "diverged":
+        message = _with_substeps_hint(message, res.traj, res.mission.substeps)
     return status, message, mission_values(s, spec.collect)
 
 
@@ -114,7 +116,7 @@ def _maneuver_outcome(spec: CampaignSpec, s: Any, res: Any) -> tuple[str, str, d
     from bb2_sim.metrics import figures_for
 
     status = "ok" if res.error is None else "diverged"
-    message = "" if res.error is None else _one_line(str(res.error))
+    message = "" if res.error is None else _with_substeps_hint(_one_line(str(res.error)), res.traj, s.substeps)
     try:
         fig = figures_for(s.name, res.traj, **asdict(s))
     except Exception as e:  # noqa: BLE001 -- figures of a truncated run may not exist
@@ -123,6 +125,15 @@ def _maneuver_outcome(spec: CampaignSpec, s: Any, res: Any) -> tuple[str, str, d
             status = "error"
         message = _one_line((message + "; " if message else "") + f"figures: {type(e).__name__}: {e}")
     return status, message, maneuver_values(str(spec.maneuver), fig, spec.collect)
+
+
+def _with_substeps_hint(message: str, traj: dict[str, Any], substeps: int) -> str:
+    """A diverged run's message, with the advice of more ROM sub-steps when the boat was fast enough for the
+    authors' step to be numerically unstable (what ``bb2-sim mission`` / ``maneuver`` say beside their error)."""
+    from bb2_sim.integrator import substeps_hint
+
+    hint = substeps_hint(traj["t_s"], traj["U_m_s"], substeps, "substeps:")
+    return f"{message}; {hint}" if hint else message
 
 
 _CACHES: dict[Any, Any] | None = None
