@@ -43,8 +43,8 @@ Mission file (YAML; every key optional except ``path``; unknown keys are an erro
                                        # end_s: 130, bias: ..., field: ...}] (bb2_sim.sensors.config.FaultSpec)
     navigation: truth                  # what the stack flies on: truth (the paper) | sensors (our filter)
     profile: iowa                      # iowa | corrected
-    substeps: 1                        # ROM ode3 steps per 0.05 s step (1: the authors'; 2+ above ~14 m/s,
-                                       # where their step is numerically unstable; bb2_sim.integrator)
+    substeps: 1                        # ROM ode3 steps per 0.05 s step (1: the authors', numerically unstable
+                                       # from ~11.6 m/s; 2 to ~15, 3 to ~18, 4 to ~20.5: bb2_sim.integrator)
     hull: null                         # null: hull generated from the offsets; or a surface directory
     limits:
       min_hull_clearance_m: 0.0        # grounding: lowest hull point this close to the terrain (vertical)

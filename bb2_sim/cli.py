@@ -44,8 +44,8 @@ def int_at_least(low: int):
 positive_int = int_at_least(1)
 
 
-SUBSTEPS_HELP = ("ROM ode3 steps per 0.05 s step (default 1: the authors' fixed step, numerically unstable from "
-                 "about 14 m/s; the stable speed grows about as sqrt(K): 2 to about 18 m/s, 4 to about 25)")
+SUBSTEPS_HELP = ("ROM ode3 steps per 0.05 s step (default 1: the authors' fixed step, numerically unstable in a "
+                 "steady cruise from about 11.6 m/s; 2 fly to about 15 m/s, 3 to about 18, 4 to about 20.5)")
 
 
 def plane_list(text: str) -> tuple[float, ...]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -280,23 +281,25 @@ def test_cli_writes_csv_and_figures_and_exit_codes(tmp_path, capsys):
 
 
 def test_a_fast_mission_diverging_at_the_authors_step_is_told_of_substeps_which_fly_it(tmp_path, capsys):
-    """A straight line at 16 m/s (n = v/4 = 4 rps): the authors' 0.05 s step diverges within seconds, the CLI says
-    so and names the mission's ``substeps: 2``, with which the same mission flies to its end."""
+    """The shipped sprint (16 m/s, n = v/4 = 4 rps, accelerating to its 16.8 m/s cruise) with the authors' single
+    step diverges within seconds; the CLI says so and names the mission's ``substeps`` for that speed, with which
+    the same mission flies on (two would not: they diverge about 20 s in, at the cruise)."""
     from bb2_tools.mission_cli import run_mission_cli
 
-    doc = {"name": "fast", "path": {"frame": "native", "tf": 250.0,
-                                    "control_points": [[0.0, 0.0, -30.0], [4000.0, 0.0, -30.0]]},
-           "terrain": "none", "rps": "path_mean_speed", "duration_s": 15.0}
     f = tmp_path / "fast.yaml"
-    f.write_text(yaml.safe_dump(doc))
+    f.write_text(f"extends: {MISSIONS_DIR / 'sprint.yaml'}\nname: fast\nsubsteps: 1\nduration_s: 30.0\n")
     args = argparse.Namespace(file=str(f), out=None, no_adaptation=False, quiet=True)
     assert run_mission_cli(args) == 1
     err = capsys.readouterr().err
-    assert "diverged at t = " in err and "the mission's substeps: 2 integrates it in 2" in err, err
-    f.write_text(yaml.safe_dump({**doc, "substeps": 2}))
+    advice = re.search(r"the mission's substeps: (\d+) integrates it in \1$", err, re.MULTILINE)
+    assert "diverged at t = " in err and advice, err
+    k = int(advice.group(1))
+    assert k == load_mission(MISSIONS_DIR / "sprint.yaml").substeps > 2, err
+    f.write_text(f.read_text().replace("substeps: 1", f"substeps: {k}"))
     assert run_mission_cli(args) == 0
     out, err = capsys.readouterr()
-    assert "diverged" not in err and "mission time 15.00 s" in out, (out, err)
+    assert "diverged" not in err and "mission time 30.00 s" in out, (out, err)
+
 
 def test_divergence_stops_and_reports(model):
     """A ROM step that raises NonFiniteStateError ends the mission as 'diverged' at that tick."""

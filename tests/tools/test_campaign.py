@@ -549,22 +549,20 @@ def test_substeps_varied_fly_each_value_as_its_own_batch_with_the_single_runs_ro
     assert one != two and abs(one - two) < 1e-3 * max(abs(one), 1.0), (one, two)
 
 def test_a_run_diverging_at_speed_is_told_of_substeps_in_its_row(tmp_path):
-    """A mission at 16 m/s diverges with the authors' step (1 sub-step): its row says so with the advice
-    ``bb2-sim mission`` prints (``substeps: 2``); the same draw with ``substeps`` 2 flies to its end.  A maneuver
-    that capsizes slowly gets no such advice."""
+    """The sprint mission (16 m/s) with the authors' step (1 sub-step) diverges: its row says so with the advice
+    ``bb2-sim mission`` prints (the sub-steps the shipped file flies with); the same draw with those flies to its
+    end.  A maneuver that capsizes slowly gets no such advice."""
+    from bb2_mission import MISSIONS_DIR, load_mission
     from bb2_tools.campaign import worker
 
-    fast = _write_spec(tmp_path / "fast.yaml", {
-        "name": "fast", "path": {"frame": "native", "tf": 250.0,
-                                 "control_points": [[0.0, 0.0, -30.0], [4000.0, 0.0, -30.0]]},
-        "terrain": "none", "rps": "path_mean_speed", "duration_s": 6.0})
-    spec = parse_spec({"mission": str(fast), "seed": 3, "vary": {"substeps": [1, 2]},
-                       "collect": ["end_reason", "mission_time_s"]})
-    one, two = worker.run_tasks(spec, [0, 1])
+    k = load_mission(MISSIONS_DIR / "sprint.yaml").substeps
+    spec = parse_spec({"mission": str(MISSIONS_DIR / "sprint.yaml"), "seed": 3,
+                       "vary": {"substeps": [1, k], "duration_s": 6.0}, "collect": ["end_reason", "mission_time_s"]})
+    one, fast = worker.run_tasks(spec, [0, 1])
     assert one["status"] == "diverged" and "diverged at t = " in one["message"], one
     assert "m/s, where the ROM's 0.05 s step in 1 ode3 step(s) is numerically unstable" in one["message"], one
-    assert one["message"].endswith("substeps: 2 integrates it in 2"), one
-    assert two["status"] == "ok" and two["message"] == "" and two["mission_time_s"] == pytest.approx(6.0), two
+    assert one["message"].endswith(f"; substeps: {k} integrates it in {k}"), one
+    assert fast["status"] == "ok" and fast["message"] == "" and fast["mission_time_s"] == pytest.approx(6.0), fast
     slow = worker.run_tasks(parse_spec(MANEUVER_SPEC), list(range(8)))
     assert any(r["status"] == "diverged" for r in slow), slow
     assert not any("substeps" in r["message"] for r in slow), slow

@@ -756,16 +756,16 @@ def test_bb2_launch_reports_a_killed_simulator_and_exits_nonzero(tmp_path, bb2_g
 @pytest.mark.ros
 def test_a_simulation_diverging_at_speed_ends_the_graph_with_exit_1_and_the_substeps_advice(
         tmp_path, bb2_graph_available):
-    """A straight line at 16 m/s: the authors' 0.05 s step diverges about 3 s in.  The simulator node says so
-    with the advice ``bb2-sim mission`` gives (the mission's ``substeps: 2``), in its status (recorded) and through
-    ``bb2-launch``, which stops the graph with exit 1 and a finished bag."""
+    """The sprint mission (16 m/s) with the authors' 0.05 s step diverges about 3 s in.  The simulator node says so
+    with the advice ``bb2-sim mission`` gives (the mission's ``substeps`` the shipped file flies with), in its status
+    (recorded) and through ``bb2-launch``, which stops the graph with exit 1 and a finished bag."""
+    from bb2_mission import MISSIONS_DIR, MissionRunner, load_mission
+    from bb2_tools.analysis import analyze
+    from bb2_tools.bag_run import read_bag
     from bb2_tools.bagfile import BagReader
 
     mission = tmp_path / "fast.yaml"
-    mission.write_text(yaml.safe_dump({
-        "name": "fast", "path": {"frame": "native", "tf": 250.0,
-                                 "control_points": [[0.0, 0.0, -30.0], [4000.0, 0.0, -30.0]]},
-        "terrain": "none", "rps": "path_mean_speed", "duration_s": 15.0}))
+    mission.write_text(f"extends: {MISSIONS_DIR / 'sprint.yaml'}\nname: fast\nsubsteps: 1\nduration_s: 15.0\n")
     out = tmp_path / "bags" / "run"
     p = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--out", str(out),
                         "--timeout", "100"], cwd=tmp_path, env=ros_env(), capture_output=True, text=True,
@@ -774,16 +774,12 @@ def test_a_simulation_diverging_at_speed_ends_the_graph_with_exit_1_and_the_subs
     said = re.search(r"the simulator stopped: (simulation diverged at t = [0-9.]+ s: non-finite .*)$", p.stderr,
                      re.MULTILINE)
     assert said, p.stderr
-    advice = "the mission's substeps: 2 integrates it in 2"
+    k = load_mission(MISSIONS_DIR / "sprint.yaml").substeps
+    advice = f"the mission's substeps: {k} integrates it in {k}"
     assert said.group(1).endswith(advice) and "m/s, where the ROM's 0.05 s step in 1 ode3 step(s)" in said.group(1)
     assert (out / "metadata.yaml").is_file()  # the recorder, stopped last, finished the bag
     status = BagReader(out).last_statuses()["bb2/simulator"]
     assert status["state"] == "diverged" and status["error"] == said.group(1), status
-    from bb2_mission.runner import MissionRunner
-    from bb2_mission.schema import load_mission
-    from bb2_tools.analysis import analyze
-    from bb2_tools.bag_run import read_bag
-
     end = analyze(read_bag(out), mission=str(mission)).figures.end  # bb2-analyze's (and a --graph campaign's)
     alone = MissionRunner(load_mission(mission)).run().summary
     assert (end.reason, end.message) == ("diverged", f"diverged: {said.group(1)}"), end
