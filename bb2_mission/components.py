@@ -27,7 +27,7 @@ from bb2_mission.schema import RPS_PATH_MEAN_SPEED, Mission, MissionError, _reso
 __all__ = ["MissionComponents", "HullProbes", "mission_components", "check_initial_state", "stack_overrides",
            "initial_state", "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer",
            "build_sensor_suite", "sensor_spec", "cg_clearance", "step_truths",
-           "build_navigation_filter"]
+           "build_navigation_filter", "nominal_rps", "substeps_warning"]
 
 
 def stack_overrides(m: Mission) -> dict[str, Any]:
@@ -258,6 +258,16 @@ def step_truths(t_n: float, x_n: np.ndarray, xdot_n: np.ndarray, t_next: float, 
 
     return (truth_from_step(t_n, x_n, xdot_n, cg_clearance(terrain, np.asarray(x_n)[0:3]), g),
             truth_from_step(t_next, x_next, None, cg_clearance(terrain, np.asarray(x_next)[0:3]), g))
+
+
+def substeps_warning(m: Mission) -> str:
+    """Before the flight: '' or one line when the mission's speed (its start, or the steady cruise of its nominal
+    propeller command) is faster than its ``substeps`` fly steadily (:func:`bb2_sim.integrator.speed_warning`)."""
+    from bb2_sim.integrator import cruise_speed, speed_warning
+
+    rps = nominal_rps(m)
+    speed = max(float(np.linalg.norm(initial_state(m)[6:9])), cruise_speed(rps))
+    return speed_warning(speed, m.substeps, "the mission's substeps:", f"mission {m.name} ({rps:.2f} rps)")
 
 
 def nominal_rps(m: Mission) -> float:

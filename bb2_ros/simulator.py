@@ -132,7 +132,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from bb2_mission.components import (build_model, build_navigation_filter, build_sensor_suite, build_simulator,
-                                    nominal_rps, sensor_spec, step_truths)
+                                    nominal_rps, sensor_spec, step_truths, substeps_warning)
 from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, RecorderAck,
                                        StepDecision, TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
@@ -317,6 +317,9 @@ class Simulator(Node):
                         startup_timeout_s=self.startup_timeout_s, startup_settle_s=self.startup_settle_s,
                         command_timeout_s=self.command_timeout_s),
             nominal_rps=build_piece(self.mission, nominal_rps))
+        too_fast = build_piece(self.mission, substeps_warning)  # the mission faster than its sub-steps fly
+        if too_fast:
+            self.get_logger().warning(too_fast)
         self._failsafe_shown = False  # the failsafe state last logged / published
         self._takeover_t: float | None = None  # sim time of the first step on valid commands
         if ack_window and self.time_mode is not TimeMode.LOCKSTEP:

@@ -260,6 +260,12 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
         print(f"bb2-sim: error: {os_error_line(e, a.out)}", file=sys.stderr)
         return 2
     print(f"maneuver {s.name}: {s.doc}")
+    from .integrator import cruise_speed, speed_warning
+
+    held = s.speed_mps if s.propeller != "constant" else max(s.speed_mps, cruise_speed(s.rps_command))
+    warning = speed_warning(held, s.substeps, "--substeps", f"maneuver {s.name}")
+    if warning:
+        print(f"bb2-sim: warning: {warning}", file=sys.stderr)
     print(f"  hull: {model.surfaces.source} ({model.surfaces.n_triangles()} triangles, V = {model.volume:.3f} m^3"
           f"{', weight trimmed to buoyancy' if model.trimmed else ''}); profile {model.profile.name}; "
           + (f"sea state {model.wave.sea_state}" if s.environment is None else s.environment.summary()))

@@ -80,13 +80,39 @@ HINT_MARGIN = 1.1
 boat holding a speed may still be speeding up towards its cruise)."""
 
 
-def substeps_for(speed_mps: float, substeps: int = 1) -> int:
+def substeps_for(speed_mps: float, substeps: int = 1, margin: float = HINT_MARGIN) -> int:
     """More sub-steps than ``substeps`` for a boat at ``speed_mps``: the fewest whose measured steady cruise flies
-    :data:`HINT_MARGIN` times that speed; beyond the measured table, twice the larger of ``substeps`` and its
-    largest."""
+    ``margin`` times that speed; beyond the measured table, twice the larger of ``substeps`` and its largest."""
     limits = cruise_limits()
-    fit = [k for k, (flown, _) in sorted(limits.items()) if k > substeps and flown >= HINT_MARGIN * speed_mps]
+    fit = [k for k, (flown, _) in sorted(limits.items()) if k > substeps and flown >= margin * speed_mps]
     return fit[0] if fit else 2 * max(substeps, max(limits))
+
+
+@lru_cache(maxsize=1)
+def _cruise_m_s_per_rps() -> float:
+    import yaml
+
+    return float(yaml.safe_load(STABILITY_DATA.read_text())["cruise_m_s_per_rps"])
+
+
+def cruise_speed(rps: float) -> float:
+    """The ROM's steady straight-ahead speed with the propeller at ``rps``, m/s (measured with the cruise limits)."""
+    return _cruise_m_s_per_rps() * float(rps)
+
+
+def speed_warning(speed_mps: float, substeps: int, option: str, subject: str = "the boat") -> str:
+    """Before a run: '' or one line saying that ``subject`` at ``speed_mps`` (what the run is expected to hold) is
+    faster than the steady cruise ``substeps`` fly, naming ``option`` with the fewest sub-steps that fly it (none
+    for sub-steps beyond the measured table)."""
+    limits = cruise_limits()
+    if substeps not in limits or not speed_mps > limits[substeps][0]:
+        return ""
+    flown = limits[substeps][0]
+    more = substeps_for(speed_mps, substeps, margin=1.0)
+    reach = (f"to about {limits[more][0]:.1f} m/s" if more in limits else
+             "faster than measured (benchmarks/substeps_stability.py)")
+    return (f"{subject} at about {speed_mps:.1f} m/s is faster than the ROM's 0.05 s step in {substeps} ode3 step(s) "
+            f"flies steadily (about {flown:.1f} m/s) and will likely diverge; {option} {more} flies {reach}")
 
 
 def substeps_hint(t_s: Sequence[float], speed_mps: Sequence[float], substeps: int, option: str) -> str:
@@ -105,8 +131,9 @@ def substeps_hint(t_s: Sequence[float], speed_mps: Sequence[float], substeps: in
         return ""
     more = substeps_for(held, substeps)
     measured = ", ".join(f"{d:.1f}{' m/s' * (i == 0)} with {k}" for i, (k, (_, d)) in enumerate(sorted(limits.items())))
-    return (f"the boat held {held:.1f} m/s, where the ROM's 0.05 s step in {substeps} ode3 step(s) is numerically "
-            f"unstable (a steady cruise diverges from about {measured}); {option} {more} integrates it in {more}")
+    return (f"the boat held {held:.1f} m/s, near or past where the ROM's 0.05 s step in {substeps} ode3 step(s) "
+            f"turns numerically unstable (a steady cruise diverges from about {measured}); {option} {more} "
+            f"integrates it in {more}")
 
 
 class Simulator:

@@ -66,6 +66,11 @@ def run_mission_cli(a: argparse.Namespace) -> int:
               f"adaptation {'on' if m.adaptation else 'off'}, terrain {m.terrain_source or 'none'}, "
               f"duration limit {m.duration:g} s")
         print(f"  sea: {m.environment.summary()}")
+    from bb2_mission import substeps_warning
+
+    warning = substeps_warning(m)
+    if warning:
+        print(f"bb2-sim: warning: {warning}", file=sys.stderr)
 
     def progress(t: float) -> None:
         sys.stderr.write(f"\r  t = {t:7.1f} / {m.duration:.0f} s")

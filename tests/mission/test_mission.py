@@ -291,14 +291,17 @@ def test_a_fast_mission_diverging_at_the_authors_step_is_told_of_substeps_which_
     args = argparse.Namespace(file=str(f), out=None, no_adaptation=False, quiet=True)
     assert run_mission_cli(args) == 1
     err = capsys.readouterr().err
+    warned = re.search(r"^bb2-sim: warning: mission fast \(4.00 rps\) at about [0-9.]+ m/s is faster than the ROM's "
+                       r"0.05 s step in 1 ode3 step\(s\) flies .* the mission's substeps: (\d+) flies", err, re.MULTILINE)
     advice = re.search(r"the mission's substeps: (\d+) integrates it in \1$", err, re.MULTILINE)
     assert "diverged at t = " in err and advice, err
     k = int(advice.group(1))
-    assert k == load_mission(MISSIONS_DIR / "sprint.yaml").substeps > 2, err
+    assert k == load_mission(MISSIONS_DIR / "sprint.yaml").substeps == int(warned.group(1)) > 2, err
+    assert err.index("warning:") < err.index("diverged at t = "), err  # said before the flight
     f.write_text(f.read_text().replace("substeps: 1", f"substeps: {k}"))
     assert run_mission_cli(args) == 0
     out, err = capsys.readouterr()
-    assert "diverged" not in err and "mission time 30.00 s" in out, (out, err)
+    assert "diverged" not in err and "warning" not in err and "mission time 30.00 s" in out, (out, err)
 
 
 def test_divergence_stops_and_reports(model):

@@ -83,9 +83,12 @@ def test_a_fast_boat_diverging_at_the_authors_step_is_told_of_substeps_which_fly
     assert p.returncode == 1 and "diverged at t =" in p.stderr, p.stderr
     advice = re.search(r"--substeps (\d+) integrates it in \1$", p.stderr, re.MULTILINE)
     assert "numerically unstable" in p.stderr and advice and int(advice.group(1)) >= 2, p.stderr
+    warned = re.search(r"^bb2-sim: warning: maneuver open-loop at about [0-9.]+ m/s is faster than the ROM's 0.05 s "
+                       r"step in 1 ode3 step\(s\) flies steadily .* --substeps (\d+) flies to about", p.stderr, re.M)
+    assert warned and int(warned.group(1)) >= 2, p.stderr
     out = tmp_path / "fast.csv"
     p = run(*args, "--substeps", advice.group(1), "--out", str(out))
-    assert p.returncode == 0 and "diverged" not in p.stderr, p.stderr
+    assert p.returncode == 0 and "diverged" not in p.stderr and "warning" not in p.stderr, p.stderr
     rows = list(csv.reader(out.open()))
     assert len(rows) == 1 + 201 and float(rows[-1][0]) == pytest.approx(20.0)
     assert float(rows[-1][rows[0].index("U_m_s")]) > 15.0

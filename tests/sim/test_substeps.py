@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bb2_sim.integrator import (HINT_FROM, HINT_MARGIN, NonFiniteStateError, Simulator, cruise_limits,
-                                 substeps_for, substeps_hint)
+                                 cruise_speed, speed_warning, substeps_for, substeps_hint)
 from bb2_sim.model import BB2Model
 
 T_S = 10.0
@@ -105,3 +105,21 @@ def test_the_advice_is_the_fewest_sub_steps_measured_to_cruise_with_a_margin_abo
     assert substeps_hint(t, slowed, 1, "--substeps") == ""
     assert substeps_hint([], [], 1, "--substeps") == ""
     assert substeps_hint(t, np.full_like(t, 16.8), 2, "x:").endswith("x: 4 integrates it in 4")  # 1.1 x 16.8: past 3
+
+
+def test_a_run_faster_than_its_sub_steps_fly_is_warned_before_it_starts(model):
+    """``speed_warning``: above the fastest steady cruise of its sub-steps (not at it), with the fewest that fly
+    the speed; beyond the measured table, twice its largest.  ``cruise_speed`` is the measured steady speed per rps:
+    a boat started there stays there."""
+    limits = cruise_limits()
+    assert speed_warning(limits[1][0], 1, "--substeps") == ""
+    said = speed_warning(limits[1][0] + 0.1, 1, "--substeps", "maneuver x")
+    assert said.startswith(f"maneuver x at about {limits[1][0] + 0.1:.1f} m/s is faster than") and said.endswith(
+        f"will likely diverge; --substeps 2 flies to about {limits[2][0]:.1f} m/s"), said
+    assert speed_warning(17.2, 2, "k:").endswith(f"k: 3 flies to about {limits[3][0]:.1f} m/s")
+    assert speed_warning(30.0, 1, "k:").endswith(f"k: {2 * max(limits)} flies faster than measured "
+                                                 "(benchmarks/substeps_stability.py)")
+    assert speed_warning(30.0, 2 * max(limits), "k:") == ""  # not measured: no warning
+    u = cruise_speed(2.0)
+    sim = _fly(model, 1, u, 2.0, duration_s=30.0)
+    assert float(np.linalg.norm(sim.x[6:9])) == pytest.approx(u, rel=0.02)

@@ -776,8 +776,11 @@ def test_a_simulation_diverging_at_speed_ends_the_graph_with_exit_1_and_the_subs
     assert said, p.stderr
     k = load_mission(MISSIONS_DIR / "sprint.yaml").substeps
     advice = f"the mission's substeps: {k} integrates it in {k}"
-    assert said.group(1).endswith(advice) and "m/s, where the ROM's 0.05 s step in 1 ode3 step(s)" in said.group(1)
+    assert said.group(1).endswith(advice) and "m/s, near or past where the ROM's 0.05 s step in 1 ode3" in said.group(1)
     assert (out / "metadata.yaml").is_file()  # the recorder, stopped last, finished the bag
+    log = (out / "logs" / "simulator.log").read_text()  # warned as it started
+    assert "is faster than the ROM's 0.05 s step in 1 ode3 step(s) flies steadily" in log, log[-3000:]
+    assert f"will likely diverge; the mission's substeps: {k} flies to about" in log, log[-3000:]
     status = BagReader(out).last_statuses()["bb2/simulator"]
     assert status["state"] == "diverged" and status["error"] == said.group(1), status
     end = analyze(read_bag(out), mission=str(mission)).figures.end  # bb2-analyze's (and a --graph campaign's)
