@@ -60,6 +60,9 @@ def main(argv: list[str] | None = None) -> int:
         best = f"{flown[-1][1][2]:5.1f} m/s ({flown[-1][0]:.2f} rps)" if flown else "none"
         worst = f"{lost[0][1][2]:5.1f} m/s ({lost[0][0]:.2f} rps, at t = {lost[0][1][1]:.1f} s)" if lost else "none"
         print(f"{k:8d}  {best:18s}  {worst}")
+    per_rps = [e[2] / n for (k, n), e in ends.items() if e[0]]
+    if per_rps:  # the data file's cruise_m_s_per_rps
+        print(f"steady speed per rps of the cruises flown: {min(per_rps):.3f} .. {max(per_rps):.3f} m/s")
     print("each run: " + "; ".join(f"K={k} {n:.2f} rps " + ("ok" if e[0] else f"diverged at {e[1]:.1f} s")
                                    for (k, n), e in ends.items()))
     return 0
