@@ -262,8 +262,8 @@ def step_truths(t_n: float, x_n: np.ndarray, xdot_n: np.ndarray, t_next: float, 
 
 def substeps_warning(m: Mission) -> str:
     """Before the flight: '' or one line when the mission's speed (its start, or the steady cruise of its nominal
-    propeller command) is faster than its ``substeps`` fly steadily (:func:`bb2_sim.integrator.speed_warning`)."""
-    from bb2_sim.integrator import cruise_speed, speed_warning
+    propeller command) is faster than its ``substeps`` fly steadily (:func:`bb2_sim.step_stability.speed_warning`)."""
+    from bb2_sim.step_stability import cruise_speed, speed_warning
 
     rps = nominal_rps(m)
     speed = max(float(np.linalg.norm(initial_state(m)[6:9])), cruise_speed(rps))

@@ -44,7 +44,7 @@ Mission file (YAML; every key optional except ``path``; unknown keys are an erro
     navigation: truth                  # what the stack flies on: truth (the paper) | sensors (our filter)
     profile: iowa                      # iowa | corrected
     substeps: 1                        # ROM ode3 steps per 0.05 s step (1: the authors', numerically unstable
-                                       # from ~11.6 m/s; 2 to ~15, 3 to ~18, 4 to ~20.5: bb2_sim.integrator)
+                                       # from ~11.6 m/s; 2 to ~15, 3 to ~18, 4 to ~20.5: bb2_sim.step_stability)
     hull: null                         # null: hull generated from the offsets; or a surface directory
     limits:
       min_hull_clearance_m: 0.0        # grounding: lowest hull point this close to the terrain (vertical)

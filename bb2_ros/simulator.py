@@ -142,7 +142,8 @@ from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS, mountings_json, sample
 from bb2_msgs_py.contract import (FRAME_BASE_LINK, FRAME_ODOM, PLANE_JOINTS, PROPELLER_JOINT, frame_prefix,
                                   message_class, node_topic_name, qos_profile, recorded_in_namespace,
                                   vehicle_frame)
-from bb2_sim.integrator import NonFiniteStateError, substeps_hint
+from bb2_sim.integrator import NonFiniteStateError
+from bb2_sim.step_stability import substeps_hint
 from bb2_sim.state import VehicleState
 
 from bb2_ros import heap

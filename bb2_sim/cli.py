@@ -260,7 +260,7 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
         print(f"bb2-sim: error: {os_error_line(e, a.out)}", file=sys.stderr)
         return 2
     print(f"maneuver {s.name}: {s.doc}")
-    from .integrator import cruise_speed, speed_warning
+    from .step_stability import cruise_speed, speed_warning
 
     held = s.speed_mps if s.propeller != "constant" else max(s.speed_mps, cruise_speed(s.rps_command))
     warning = speed_warning(held, s.substeps, "--substeps", f"maneuver {s.name}")
@@ -283,7 +283,7 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
     if res.error is not None:
         print(f"bb2-sim: {res.error}; the CSV keeps every row up to t = {sim_t:.2f} s"
               + (f" ({a.out})" if a.out else ""), file=sys.stderr)
-        from .integrator import substeps_hint
+        from .step_stability import substeps_hint
 
         hint = substeps_hint(res.traj["t_s"], res.traj["U_m_s"], s.substeps, "--substeps")
         if hint:

@@ -9,7 +9,7 @@ One major step n -> n+1 (t_n = n h):
    x_{n+1} = x_n + h (2/9 k1 + 1/3 k2 + 4/9 k3).
 
 ``substeps`` k > 1 (not the reference's: an option for speeds where the authors' step is numerically unstable, a
-steady cruise from about 11.6 m/s at h = 0.05 s: ``data/substeps_stability.yaml``) integrates the major step as k
+steady cruise from about 11.6 m/s at h = 0.05 s: :mod:`bb2_sim.step_stability`) integrates the major step as k
 such ode3 steps of h/k, each a major step of the model's Derivative blocks (1 and 3 above at t_n + j h/k), with the
 actuators' outputs of step 1 held: the commands, the actuators and every output stay at the rate 1/h.  k = 1 is the
 reference's step, bit for bit.
@@ -17,9 +17,6 @@ reference's step, bit for bit.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
-from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -57,83 +54,6 @@ def check_substeps(substeps) -> int:
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
         raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
     return int(substeps)
-
-
-STABILITY_DATA = Path(__file__).resolve().parent / "data" / "substeps_stability.yaml"
-
-
-@lru_cache(maxsize=1)
-def cruise_limits() -> dict[int, tuple[float, float]]:
-    """Per number of sub-steps K: (the fastest steady cruise flown, the slowest that diverged), m/s, as measured
-    (``data/substeps_stability.yaml``, ``benchmarks/substeps_stability.py``)."""
-    import yaml
-
-    doc = yaml.safe_load(STABILITY_DATA.read_text())
-    return {int(k): (float(v["flown_m_s"]), float(v["diverged_m_s"])) for k, v in doc["cruise"].items()}
-
-
-HINT_FROM = 0.9
-"""A diverged run is advised more sub-steps when it held at least this fraction of the fastest steady cruise its
-sub-steps fly (below, say a capsize at low speed, the step is not the likely cause)."""
-HINT_MARGIN = 1.1
-"""The advice is the fewest sub-steps whose fastest steady cruise is this much above the speed the boat held (a
-boat holding a speed may still be speeding up towards its cruise)."""
-
-
-def substeps_for(speed_mps: float, substeps: int = 1, margin: float = HINT_MARGIN) -> int:
-    """More sub-steps than ``substeps`` for a boat at ``speed_mps``: the fewest whose measured steady cruise flies
-    ``margin`` times that speed; beyond the measured table, twice the larger of ``substeps`` and its largest."""
-    limits = cruise_limits()
-    fit = [k for k, (flown, _) in sorted(limits.items()) if k > substeps and flown >= margin * speed_mps]
-    return fit[0] if fit else 2 * max(substeps, max(limits))
-
-
-@lru_cache(maxsize=1)
-def _cruise_m_s_per_rps() -> float:
-    import yaml
-
-    return float(yaml.safe_load(STABILITY_DATA.read_text())["cruise_m_s_per_rps"])
-
-
-def cruise_speed(rps: float) -> float:
-    """The ROM's steady straight-ahead speed with the propeller at ``rps``, m/s (measured with the cruise limits)."""
-    return _cruise_m_s_per_rps() * float(rps)
-
-
-def speed_warning(speed_mps: float, substeps: int, option: str, subject: str = "the boat") -> str:
-    """Before a run: '' or one line saying that ``subject`` at ``speed_mps`` (what the run is expected to hold) is
-    faster than the steady cruise ``substeps`` fly, naming ``option`` with the fewest sub-steps that fly it (none
-    for sub-steps beyond the measured table)."""
-    limits = cruise_limits()
-    if substeps not in limits or not speed_mps > limits[substeps][0]:
-        return ""
-    flown = limits[substeps][0]
-    more = substeps_for(speed_mps, substeps, margin=1.0)
-    reach = (f"to about {limits[more][0]:.1f} m/s" if more in limits else
-             "faster than measured (benchmarks/substeps_stability.py)")
-    return (f"{subject} at about {speed_mps:.1f} m/s is faster than the ROM's 0.05 s step in {substeps} ode3 step(s) "
-            f"flies steadily (about {flown:.1f} m/s) and will likely diverge; {option} {more} flies {reach}")
-
-
-def substeps_hint(t_s: Sequence[float], speed_mps: Sequence[float], substeps: int, option: str) -> str:
-    """For a run that diverged: '' or one line advising ``option`` with more ``substeps`` (:func:`substeps_for`)
-    when the boat held, over its last 2 s, at least :data:`HINT_FROM` of the fastest steady cruise that
-    ``substeps`` fly (``t_s``, ``speed_mps``: its logged times and speeds, the last finite ones; a boat that
-    capsized at low speed gets no such hint)."""
-    t = np.asarray(t_s, dtype=float)
-    u = np.asarray(speed_mps, dtype=float)
-    if t.size == 0:
-        return ""
-    held = float(np.min(u[t >= t[-1] - 2.0]))
-    limits = cruise_limits()
-    flown, _ = limits.get(substeps, limits[max(limits)])
-    if not held >= HINT_FROM * flown:
-        return ""
-    more = substeps_for(held, substeps)
-    measured = ", ".join(f"{d:.1f}{' m/s' * (i == 0)} with {k}" for i, (k, (_, d)) in enumerate(sorted(limits.items())))
-    return (f"the boat held {held:.1f} m/s, near or past where the ROM's 0.05 s step in {substeps} ode3 step(s) "
-            f"turns numerically unstable (a steady cruise diverges from about {measured}); {option} {more} "
-            f"integrates it in {more}")
 
 
 class Simulator:

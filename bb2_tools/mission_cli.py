@@ -98,7 +98,7 @@ def run_mission_cli(a: argparse.Namespace) -> int:
     if res.summary.event is not None:
         print(f"bb2-sim: mission {m.name} failed: {res.summary.event}", file=sys.stderr)
         if res.summary.end_reason is EndReason.DIVERGED:
-            from bb2_sim.integrator import substeps_hint
+            from bb2_sim.step_stability import substeps_hint
 
             hint = substeps_hint(res.traj["t_s"], res.traj["U_m_s"], m.substeps, "the mission's substeps:")
             if hint:

@@ -130,7 +130,7 @@ def _maneuver_outcome(spec: CampaignSpec, s: Any, res: Any) -> tuple[str, str, d
 def _with_substeps_hint(message: str, traj: dict[str, Any], substeps: int) -> str:
     """A diverged run's message, with the advice of more ROM sub-steps when the boat was fast enough for the
     authors' step to be numerically unstable (what ``bb2-sim mission`` / ``maneuver`` say beside their error)."""
-    from bb2_sim.integrator import substeps_hint
+    from bb2_sim.step_stability import substeps_hint
 
     hint = substeps_hint(traj["t_s"], traj["U_m_s"], substeps, "substeps:")
     return f"{message}; {hint}" if hint else message

@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bb2_sim.integrator import (HINT_FROM, HINT_MARGIN, NonFiniteStateError, Simulator, cruise_limits,
-                                 cruise_speed, speed_warning, substeps_for, substeps_hint)
+from bb2_sim.integrator import NonFiniteStateError, Simulator
+from bb2_sim.step_stability import (cruise_limits, cruise_speed, hint_from, hint_margin, speed_warning, substeps_for,
+                                    substeps_hint)
 from bb2_sim.model import BB2Model
 
 T_S = 10.0
@@ -89,17 +90,17 @@ def test_the_advice_is_the_fewest_sub_steps_measured_to_cruise_with_a_margin_abo
         for current in limits:
             k = substeps_for(speed, current)
             if k in limits:
-                assert k > current and limits[k][0] >= HINT_MARGIN * speed, (speed, current, k)
-                assert all(limits[j][0] < HINT_MARGIN * speed for j in range(current + 1, k)), (speed, current, k)
+                assert k > current and limits[k][0] >= hint_margin() * speed, (speed, current, k)
+                assert all(limits[j][0] < hint_margin() * speed for j in range(current + 1, k)), (speed, current, k)
             else:  # none measured above the current fits: twice the larger of the current and the largest
                 assert k == 2 * max(current, max(limits)), (speed, current, k)
-                assert all(limits[j][0] < HINT_MARGIN * speed for j in limits if j > current), (speed, current, k)
+                assert all(limits[j][0] < hint_margin() * speed for j in limits if j > current), (speed, current, k)
     t = np.arange(0.0, 5.0, 0.05)
     flown = limits[1][0]
-    held = np.full_like(t, HINT_FROM * flown)
+    held = np.full_like(t, hint_from() * flown)
     hint = substeps_hint(t, held, 1, "--substeps")
-    assert hint.startswith(f"the boat held {HINT_FROM * flown:.1f} m/s") and hint.endswith(
-        f"--substeps {substeps_for(HINT_FROM * flown)} integrates it in {substeps_for(HINT_FROM * flown)}"), hint
+    assert hint.startswith(f"the boat held {hint_from() * flown:.1f} m/s") and hint.endswith(
+        f"--substeps {substeps_for(hint_from() * flown)} integrates it in {substeps_for(hint_from() * flown)}"), hint
     assert substeps_hint(t, held - 0.05, 1, "--substeps") == ""  # slower: a capsize, not the step
     slowed = np.where(t > t[-1] - 1.0, held, 5.0)  # fast only over its last second: not held for 2 s
     assert substeps_hint(t, slowed, 1, "--substeps") == ""
