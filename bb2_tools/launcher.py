@@ -338,17 +338,20 @@ def _load_yaml_mapping(path: Path, what: str) -> dict:
     return data
 
 
-def check_mission(path: Path) -> None:
-    """Validate the mission file with ``bb2_mission.load_mission`` (when available)."""
+def check_mission(path: Path) -> str:
+    """Validate the mission file with ``bb2_mission.load_mission`` (when available); returns '' or a warning to say
+    before the flight (a mission faster than its ROM sub-steps fly: ``bb2_mission.substeps_warning``)."""
     _load_yaml_mapping(path, "mission file")
     try:
         from bb2_mission import load_mission
     except ImportError:
-        return
+        return ""
     try:
-        from bb2_mission.components import check_initial_state
+        from bb2_mission.components import check_initial_state, substeps_warning
 
-        check_initial_state(load_mission(path))   # above the surface / inside the sea floor: refused up front
+        m = load_mission(path)
+        check_initial_state(m)   # above the surface / inside the sea floor: refused up front
+        return substeps_warning(m)
     except (ValueError, OSError) as exc:
         msg = str(exc)
         raise LaunchError(msg if str(path) in msg else f"mission {path}: {msg}") from None
@@ -814,7 +817,7 @@ def _main(argv: Sequence[str] | None) -> int:
         params = args.params.resolve() if args.params else None
         if params is not None:
             check_params_file(params)
-        check_mission(mission)
+        mission_warning = check_mission(mission)
         if args.foxglove is not None:
             check_foxglove_port(args.foxglove)
         for n in (*GRAPH_NODES, *((CONTAINER,) if groups else ()), *((FOXGLOVE,) if args.foxglove else ())):
@@ -848,6 +851,8 @@ def _main(argv: Sequence[str] | None) -> int:
     echo = (lambda name, line: print(f"[{name}] {line}", file=sys.stderr, flush=True)) if args.echo else None
     print(f"[bb2-launch] mission {mission} | mode {args.mode} | ROS_DOMAIN_ID={monitor.domain_id} | "
           + (f"namespace /{namespace} | " if namespace else "") + f"run {run_dir}", file=sys.stderr, flush=True)
+    if mission_warning:
+        print(f"[bb2-launch] warning: {mission_warning}", file=sys.stderr, flush=True)
     for g in groups:
         print(f"[bb2-launch] composed: process '{process_name(g)}' runs {', '.join(g)}", file=sys.stderr, flush=True)
     if args.foxglove is not None:

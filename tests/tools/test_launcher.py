@@ -759,7 +759,7 @@ def test_a_simulation_diverging_at_speed_ends_the_graph_with_exit_1_and_the_subs
     """The sprint mission (16 m/s) with the authors' 0.05 s step diverges about 3 s in.  The simulator node says so
     with the advice ``bb2-sim mission`` gives (the mission's ``substeps`` the shipped file flies with), in its status
     (recorded) and through ``bb2-launch``, which stops the graph with exit 1 and a finished bag."""
-    from bb2_mission import MISSIONS_DIR, MissionRunner, load_mission
+    from bb2_mission import MISSIONS_DIR, MissionRunner, load_mission, substeps_warning
     from bb2_tools.analysis import analyze
     from bb2_tools.bag_run import read_bag
     from bb2_tools.bagfile import BagReader
@@ -778,7 +778,10 @@ def test_a_simulation_diverging_at_speed_ends_the_graph_with_exit_1_and_the_subs
     advice = f"the mission's substeps: {k} integrates it in {k}"
     assert said.group(1).endswith(advice) and "m/s, near or past where the ROM's 0.05 s step in 1 ode3" in said.group(1)
     assert (out / "metadata.yaml").is_file()  # the recorder, stopped last, finished the bag
-    log = (out / "logs" / "simulator.log").read_text()  # warned as it started
+    warned = substeps_warning(load_mission(mission))
+    assert warned.startswith("mission fast (4.00 rps) at about ") and "in 1 ode3 step(s) flies steadily" in warned
+    assert f"[bb2-launch] warning: {warned}\n" in p.stderr, p.stderr  # before the flight, by the launcher
+    log = (out / "logs" / "simulator.log").read_text()  # and by the simulator as it started
     assert "is faster than the ROM's 0.05 s step in 1 ode3 step(s) flies steadily" in log, log[-3000:]
     assert f"will likely diverge; the mission's substeps: {k} flies to about" in log, log[-3000:]
     status = BagReader(out).last_statuses()["bb2/simulator"]
