@@ -548,7 +548,8 @@ def test_substeps_varied_fly_each_value_as_its_own_batch_with_the_single_runs_ro
     one, two = rows[0]["rms_vertical"], rows[1]["rms_vertical"]  # the same sample's draws
     assert one != two and abs(one - two) < 1e-3 * max(abs(one), 1.0), (one, two)
 
-def test_a_run_diverging_at_speed_is_told_of_substeps_in_its_row(tmp_path):
+
+def test_a_run_diverging_at_speed_is_told_of_substeps_in_its_row():
     """The sprint mission (16 m/s) with the authors' step (1 sub-step) diverges: its row says so with the advice
     ``bb2-sim mission`` prints (the sub-steps the shipped file flies with); the same draw with those flies to its
     end.  A maneuver that capsizes slowly gets no such advice."""
