@@ -260,12 +260,13 @@ def step_truths(t_n: float, x_n: np.ndarray, xdot_n: np.ndarray, t_next: float, 
             truth_from_step(t_next, x_next, None, cg_clearance(terrain, np.asarray(x_next)[0:3]), g))
 
 
-def substeps_warning(m: Mission) -> str:
+def substeps_warning(m: Mission, rps: float | None = None) -> str:
     """Before the flight: '' or one line when the mission's speed (its start, or the steady cruise of its nominal
-    propeller command) is faster than its ``substeps`` fly steadily (:func:`bb2_sim.step_stability.speed_warning`)."""
+    propeller command) is faster than its ``substeps`` fly steadily (:func:`bb2_sim.step_stability.speed_warning`).
+    ``rps``: :func:`nominal_rps` of ``m`` when the caller has it already (rev/s); computed when None."""
     from bb2_sim.step_stability import cruise_speed, speed_warning
 
-    rps = nominal_rps(m)
+    rps = nominal_rps(m) if rps is None else float(rps)
     speed = max(float(np.linalg.norm(initial_state(m)[6:9])), cruise_speed(rps))
     return speed_warning(speed, m.substeps, "the mission's substeps:", f"mission {m.name} ({rps:.2f} rps)")
 

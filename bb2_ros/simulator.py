@@ -312,13 +312,14 @@ class Simulator(Node):
         self.duration_s = duration
         limits = CommandLimits.from_actuators(self.sim.model.params.act, plane_joints=PLANE_JOINTS,
                                               propeller_joint=PROPELLER_JOINT, frame_id=self.base_link)
+        rps = build_piece(self.mission, nominal_rps)  # the stack's feed-forward propeller command, rev/s
         self.gate = LockstepGate(
             CommandValidator(limits, mode=self.time_mode, max_command_age_s=self.max_command_age_s, step_s=self.h),
             GateTimings(lockstep_timeout_s=self.lockstep_timeout_s, lockstep_retry_s=self.lockstep_retry_s,
                         startup_timeout_s=self.startup_timeout_s, startup_settle_s=self.startup_settle_s,
                         command_timeout_s=self.command_timeout_s),
-            nominal_rps=build_piece(self.mission, nominal_rps))
-        too_fast = build_piece(self.mission, substeps_warning)  # the mission faster than its sub-steps fly
+            nominal_rps=rps)
+        too_fast = build_piece(self.mission, lambda m: substeps_warning(m, rps))  # faster than its sub-steps fly
         if too_fast:
             self.get_logger().warning(too_fast)
         self._failsafe_shown = False  # the failsafe state last logged / published

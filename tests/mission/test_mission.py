@@ -304,6 +304,20 @@ def test_a_fast_mission_diverging_at_the_authors_step_is_told_of_substeps_which_
     assert "diverged" not in err and "warning" not in err and "mission time 30.00 s" in out, (out, err)
 
 
+def test_the_substeps_warning_uses_the_propeller_command_it_is_given():
+    """``substeps_warning(m, rps)``: the node passes the nominal command it has already computed; given that value
+    the warning is the one computed from the mission alone, and a faster command is warned from its own cruise."""
+    from bb2_mission import nominal_rps, substeps_warning
+
+    m = replace(load_mission(MISSIONS_DIR / "sprint.yaml"), substeps=1)
+    alone = substeps_warning(m)
+    assert alone and substeps_warning(m, nominal_rps(m)) == alone
+    canyon = load_mission(MISSIONS_DIR / "canyon.yaml")
+    assert substeps_warning(canyon) == ""
+    faster = substeps_warning(canyon, 4.0)
+    assert faster and "(4.00 rps)" in faster, faster
+
+
 def test_divergence_stops_and_reports(model):
     """A ROM step that raises NonFiniteStateError ends the mission as 'diverged' at that tick."""
     from bb2_sim.integrator import NonFiniteStateError
