@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -108,6 +109,51 @@ def wait_for_clock(domain_id: int, min_sim_s: float, timeout_s: float = 120.0) -
     finally:
         rclpy.shutdown(context=ctx)
     return latest[0]
+
+
+class SpinningNode:
+    """A node of this test process on its own rclpy context and ``domain_id``, spun on a daemon thread.
+
+    ``__init__`` makes the context, the node ``name`` (``node_kwargs`` go to ``rclpy.create_node``) and a
+    ``SingleThreadedExecutor`` holding it (``ctx``, ``node``, ``executor``), not spinning yet: a subclass creates its
+    subscriptions and publishers after ``super().__init__`` and then calls :meth:`start`, which spins the executor
+    (``spin_once(timeout_sec=spin_timeout_s)``) until :meth:`close`.  ``close`` stops the spinning (the thread
+    joined for at most 2 s), destroys the node and shuts the context down; a second call does nothing."""
+
+    def __init__(self, name: str, domain_id: int, *, spin_timeout_s: float = 0.05, **node_kwargs):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, domain_id=domain_id)
+        self.node = rclpy.create_node(name, context=self.ctx, **node_kwargs)
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        self.spin_timeout_s = spin_timeout_s
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self._closed = False
+
+    def start(self) -> SpinningNode:
+        """Spin on the daemon thread (until :meth:`close`); returns self."""
+        self.thread.start()
+        return self
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=self.spin_timeout_s)
+
+    def close(self) -> None:
+        import rclpy
+
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set()
+        if self.thread.is_alive():
+            self.thread.join(2)
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.ctx)
 
 
 def launch_with_fault(mission: Path, out: Path, *args: str, fault, min_sim_s: float = 0.0,

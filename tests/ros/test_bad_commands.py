@@ -24,23 +24,20 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 MISSION = "path: circle_r400\nstack: rate_2022\nduration_s: 300\n"
 PLANE_LIMIT_RAD = math.radians(30.0)
 
 
-class Bench:
+class Bench(SpinningNode):
     """The 'autopilot' side: publishes commands, watches state, planes and status of the simulator."""
 
     def __init__(self, domain_id: int):
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import HistoryPolicy
 
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node("bench", context=self.ctx)
+        super().__init__("bench", domain_id, spin_timeout_s=0.02)
         self.lock = threading.Lock()
         self.states: list = []
         self.planes: list = []
@@ -61,15 +58,7 @@ class Bench:
         JS = message_class("sensor_msgs/msg/JointState")
         self.pub_planes = self.node.create_publisher(JS, "/bb2/planes/cmd", qos_profile("/bb2/planes/cmd"))
         self.pub_prop = self.node.create_publisher(JS, "/bb2/propeller/cmd", qos_profile("/bb2/propeller/cmd"))
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self):
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.02)
+        self.start()
 
     def _on_state(self, m):
         with self.lock:
@@ -122,12 +111,6 @@ class Bench:
         while time.monotonic() < end:
             self.send(**kw)
             time.sleep(0.04)
-
-    def close(self):
-        self._stop.set()
-        self.thread.join(2)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
 
 
 def _params(tmp_path: Path, **values: Any) -> str:

@@ -14,7 +14,6 @@ import resource
 import shutil
 import subprocess
 import sys
-import threading
 import time
 import warnings
 from pathlib import Path
@@ -28,7 +27,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 RUN_HIL = REPO / "examples" / "hil" / "run_hil.py"
@@ -45,25 +44,18 @@ MAX_PATH_ERROR_M = 1.5  # the library runner stays within ~0.2 m over this stret
 COMMAND_TIMEOUT_S = 3.0
 
 
-class Listener:
+class Listener(SpinningNode):
     def __init__(self, domain_id: int):
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node("hil_test", context=self.ctx)
+        super().__init__("hil_test", domain_id)
         self.odom: list[tuple[float, float, np.ndarray]] = []  # (wall, t, x12 native)
         self.status: list[dict[str, str]] = []
         self.node.create_subscription(message_class("nav_msgs/msg/Odometry"), "/bb2/odom", self._on_odom,
                                       QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT))
         self.node.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
                                       self._on_status, qos_profile("/bb2/status"))
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
+        self.start()
 
     def _on_odom(self, msg) -> None:
         s = cv.odometry_to_state(msg)
@@ -72,18 +64,8 @@ class Listener:
     def _on_status(self, msg) -> None:
         self.status += [{kv.key: kv.value for kv in s.values} for s in msg.status if s.name == "bb2/simulator"]
 
-    def _spin(self) -> None:
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.05)
-
     def others(self) -> list[str]:
         return [n for n, _ in self.node.get_node_names_and_namespaces() if n != "hil_test"]
-
-    def close(self) -> None:
-        self._stop.set()
-        self.thread.join(2)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
 
 
 def _quiet_listener(attempts: int = 8) -> tuple[int, Listener]:

@@ -7,7 +7,6 @@ trajectory CSV (every step, %.17g) and the test also compares the odometry it re
 from __future__ import annotations
 
 import signal
-import threading
 import time
 from pathlib import Path
 
@@ -20,7 +19,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import claimed_domain, library_trajectory, spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain, library_trajectory, spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = REPO / "config" / "bb2_graph.yaml"
@@ -29,16 +28,13 @@ CONTROLLERS = ("bb2_ros.planner", "bb2_ros.path_following",
 DURATION_S = 20.0
 
 
-class Listener:
+class Listener(SpinningNode):
     """Odometry, native states and status of the graph, received in this process."""
 
     def __init__(self, domain_id: int):
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node("lockstep_test", context=self.ctx)
+        super().__init__("lockstep_test", domain_id)
         self.odom: list = []
         self.states: dict[float, np.ndarray] = {}
         self.state_wall: list[tuple[float, float]] = []
@@ -52,11 +48,7 @@ class Listener:
                                       self._on_state, deep_reliable)
         self.node.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
                                       self._on_status, qos_profile("/bb2/status"))
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
+        self.start()
 
     def _on_status(self, msg) -> None:
         self.status_names.update(s.name for s in msg.status)
@@ -69,16 +61,6 @@ class Listener:
         if s.t not in self.states:
             self.state_wall.append((s.t, time.monotonic()))
         self.states[s.t] = s.as_vector()
-
-    def _spin(self) -> None:
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def close(self) -> None:
-        self._stop.set()
-        self.thread.join(2)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
 
 
 @pytest.mark.parametrize("state_source,substeps", [("native", 1), ("odometry", 2)])

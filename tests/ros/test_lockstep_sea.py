@@ -19,7 +19,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = REPO / "config" / "bb2_graph.yaml"
@@ -27,41 +27,23 @@ CONTROLLERS = ("bb2_ros.planner", "bb2_ros.path_following", "bb2_ros.l1_autopilo
 DURATION_S = 15.0
 
 
-class SeaListener:
+class SeaListener(SpinningNode):
     """The latched /bb2/sea, received by a reader that may come late."""
 
     def __init__(self, domain_id: int):
-        from rclpy.executors import SingleThreadedExecutor
-
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node("sea_test", context=self.ctx)
+        super().__init__("sea_test", domain_id)
         self.sea: list[str] = []
         self.finished = threading.Event()  # the simulator said state=finished (it stays up: exit_at_end false)
         self.node.create_subscription(message_class("std_msgs/msg/String"), "/bb2/sea",
                                       lambda m: self.sea.append(m.data), qos_profile("/bb2/sea"))
         self.node.create_subscription(message_class("diagnostic_msgs/msg/DiagnosticArray"), "/bb2/status",
                                       self._on_status, qos_profile("/bb2/status"))
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
+        self.start()
 
     def _on_status(self, msg) -> None:
         if any(kv.key == "state" and kv.value == "finished" for st in msg.status if st.name == "bb2/simulator"
                for kv in st.values):
             self.finished.set()
-
-    def _spin(self) -> None:
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def close(self) -> None:
-        self._stop.set()
-        self.thread.join(2)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
 
 
 def _library_trajectory(mission_file: Path, environment=None, commands: list | None = None) -> np.ndarray:

@@ -11,7 +11,6 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -24,31 +23,19 @@ from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 from bb2_sim.state import VehicleState  # noqa: E402
 
-from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 
 
 def test_the_launch_monitor_started_after_the_last_ack_still_learns_it(tmp_path):
-    from rclpy.executors import SingleThreadedExecutor
-
     from bb2_tools.graph_monitor import GraphMonitor
 
     domain = claimed_domain()
     rec = subprocess.Popen([sys.executable, "-m", "bb2_tools.recorder", "--out", str(tmp_path / "bag")], cwd=REPO,
                            env=ros_env(domain), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    node = rclpy.create_node("late_ack_test", context=ctx)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    stop = threading.Event()
-
-    def spin():
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
-    spinner = threading.Thread(target=spin, daemon=True)
-    spinner.start()
+    spinner = SpinningNode("late_ack_test", domain).start()
+    node = spinner.node
     acks: list[int] = []  # what a reader matched before the run gets
     node.create_subscription(message_class("std_msgs/msg/Header"), "/bb2/recorder/ack",
                              lambda m: acks.append(cv.stamp_to_ns(m.stamp)), qos_profile("/bb2/recorder/ack",
@@ -81,10 +68,7 @@ def test_the_launch_monitor_started_after_the_last_ack_still_learns_it(tmp_path)
     finally:
         if monitor is not None:
             monitor.close()
-        stop.set()
-        spinner.join(2)
-        node.destroy_node()
-        rclpy.shutdown(context=ctx)
+        spinner.close()
         rec.send_signal(signal.SIGINT)
         try:
             rec.wait(30)

@@ -21,34 +21,22 @@ from bb2_msgs_py.contract import message_class, qos_profile, topic  # noqa: E402
 from bb2_sim.state import VehicleState  # noqa: E402
 from bb2_ros.node_common import remap_rules  # noqa: E402
 
-from rosenv import claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 MISSION = "path: circle_r400\nstack: rate_2022\nduration_s: 30\n"
 
 
 # ----------------------------------------------------------------------------------------- harness
-class Probe:
+class Probe(SpinningNode):
     """A test node on its own context/domain: subscribes, publishes, waits for conditions."""
 
     def __init__(self, domain_id: int):
-        from rclpy.executors import SingleThreadedExecutor
-
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node("probe", context=self.ctx)
+        super().__init__("probe", domain_id, spin_timeout_s=0.02)
         self.msgs: dict[str, list] = {}
         self.pubs: dict[str, Any] = {}
         self.lock = threading.Lock()
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.02)
+        self.start()
 
     def sub(self, name: str, type_name: str | None = None, qos: Any = None) -> list:
         from rclpy.qos import HistoryPolicy
@@ -86,12 +74,6 @@ class Probe:
         # (a node's start-up: its imports and its mission's pieces; over 20 s seen on two test workers beside two
         # CPU hogs)
         self.wait(lambda: self.node.count_subscribers(name) > 0, timeout, f"a subscriber of {name}", proc)
-
-    def close(self) -> None:
-        self._stop.set()
-        self.thread.join(2)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
 
 
 @pytest.fixture

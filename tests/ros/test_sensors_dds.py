@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import signal
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +16,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py.contract import message_class, qos_profile, topic  # noqa: E402
 from bb2_msgs_py.sensor_conversions import SENSOR_TOPICS  # noqa: E402
 
-from rosenv import claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = REPO / "config" / "bb2_graph.yaml"
@@ -33,17 +32,14 @@ sensors:
 """
 
 
-class Listener:
+class Listener(SpinningNode):
     """Every /bb2/sensors/* message, serialized (raw), in arrival order per topic; also reads /bb2/state_native so
     the simulator (min_state_subscribers) waits for it before the first step."""
 
     def __init__(self, domain_id: int):
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node("sensors_test", context=self.ctx)
+        super().__init__("sensors_test", domain_id)
         self.raw: dict[str, list[bytes]] = {n: [] for n in SENSOR_TOPICS}
         for name in SENSOR_TOPICS:
             latched = name == "/bb2/sensors/mountings"
@@ -54,21 +50,7 @@ class Listener:
                                           lambda m, n=name: self.raw[n].append(bytes(m)), q, raw=True)
         self.node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
                                       lambda m: None, qos_profile("/bb2/state_native"))
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def close(self) -> None:
-        self._stop.set()
-        self.thread.join(2)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
+        self.start()
 
 
 def _run(tmp_path: Path, mission: Path, domain_id: int) -> dict[str, list[bytes]]:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rosenv import claimed_domain  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain  # noqa: E402  (tests/rosenv.py)
 
 pytestmark = pytest.mark.ros
 rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
@@ -50,16 +50,13 @@ HOLD_SPEED_MPS = 9.5  # the huge-command bursts start below this speed (2 rps cr
 TWO_PI = 2.0 * math.pi
 
 
-class Bench:
+class Bench(SpinningNode):
     """The test's side of the contract: a background 'autopilot' and what the simulator publishes."""
 
     def __init__(self, domain_id: int):
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node("property_bench", context=self.ctx)
+        super().__init__("property_bench", domain_id, spin_timeout_s=0.02)
         js = message_class("sensor_msgs/msg/JointState")
         self.pub_planes = self.node.create_publisher(js, "/bb2/planes/cmd", qos_profile("/bb2/planes/cmd"))
         self.pub_prop = self.node.create_publisher(js, "/bb2/propeller/cmd", qos_profile("/bb2/propeller/cmd"))
@@ -79,15 +76,11 @@ class Bench:
         self.node.create_subscription(js, "/bb2/propeller/state", self._on_prop, be)
         self.node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
                                       self._on_state, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
         self.valid_on = threading.Event()
         self.valid_planes_rad = 0.0
-        self.threads = [threading.Thread(target=self._spin, daemon=True),
-                        threading.Thread(target=self._autopilot, daemon=True)]
-        for t in self.threads:
-            t.start()
+        self.autopilot_thread = threading.Thread(target=self._autopilot, daemon=True)
+        self.start()
+        self.autopilot_thread.start()
 
     # -- callbacks
     def _on_clock(self, msg) -> None:
@@ -113,10 +106,6 @@ class Bench:
         if not (math.isfinite(s.t) and np.all(np.isfinite(s.as_vector()))):
             self.nonfinite_states += 1
         self.speed_mps = float(np.linalg.norm(s.v_body_native))
-
-    def _spin(self) -> None:
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.02)
 
     def _autopilot(self) -> None:
         while not self._stop.is_set():
@@ -185,10 +174,8 @@ class Bench:
 
     def close(self) -> None:
         self._stop.set()
-        for t in self.threads:
-            t.join(2)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
+        self.autopilot_thread.join(2)
+        super().close()
 
 
 class SimProcess:

@@ -11,7 +11,6 @@ import math
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -27,7 +26,7 @@ from bb2_tools.bagfile import BagReader, BagWriter, qos_entry  # noqa: E402
 from bb2_tools.replay import (PlaybackClock, ReplayError, main, open_loop, replay_qos,  # noqa: E402
                               select_bag_topics)
 
-from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 DURATION_S = 3.0
@@ -145,14 +144,11 @@ def test_open_loop_notices_commands_the_run_did_not_apply(tmp_path, recorded):
 
 
 # ----------------------------------------------------------------------------------------- republishing
-class Listener:
+class Listener(SpinningNode):
     def __init__(self, domain_id: int, topics: dict[str, str]):
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node("replay_test", context=self.ctx)
+        super().__init__("replay_test", domain_id)
         self.got: dict[str, list[tuple[float, bytes]]] = {n: [] for n in topics}
         for name, type_name in topics.items():
             rel = ReliabilityPolicy.BEST_EFFORT if name in ("/bb2/odom", "/clock") else ReliabilityPolicy.RELIABLE
@@ -162,21 +158,7 @@ class Listener:
                                           lambda data, info, name=name: self.got[name].append(
                                               (info["source_timestamp"] * 1e-9, data)),
                                           QoSProfile(depth=10000, reliability=rel), raw=True)
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def close(self) -> None:
-        self._stop.set()
-        self.thread.join(2)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
+        self.start()
 
 
 def _quiet_listener(topics: dict[str, str], attempts: int = 8) -> tuple[int, Listener]:
