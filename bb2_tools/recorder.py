@@ -37,6 +37,14 @@ level once a message was lost), each boat's step acknowledged, and its process's
 nodes say theirs).  With ``--use-sim-time`` in a boat's graph it is stamped on the boat's simulation time (its
 ``use_sim_time`` value says true), so its statuses count CPU per simulated step like a node's.
 
+Transport: the recorder's own process talks to the graph over UDP only (Fast DDS ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``,
+set for its process alone; ``--transports`` or that variable in its environment choose others); the nodes keep
+Fast DDS's default shared memory between themselves.  In the shared-memory transport a reader's port that does not
+answer its health check in time (a recorder at nice +10 starved on a loaded machine) can be replaced under the
+writers that re-open it, while the reader keeps listening on the old one: the writers' messages then go where no one
+reads, for the rest of the run (Fast DDS ``SharedMemGlobal::open_port``).  Over UDP a starved recorder only falls
+behind, and the reliable writers repair what it missed from their histories.
+
 Stopping: SIGINT or SIGTERM finish the bag (summary, ``rosbag2`` metadata record, metadata.yaml)
 and exit 0.  A SIGKILL loses at most the open chunk (``--chunk-size`` bytes, or
 ``--flush-period`` seconds of data); ``bb2_tools.bagfile.recover`` repairs such a bag.
@@ -50,13 +58,15 @@ on its own clock (``/boat1/clock`` with ``--use-sim-time``) and acknowledged on 
 Usage::
 
     python -m bb2_tools.recorder --out bags/run1 [--topics REGEX ...] [--chunk-size BYTES]
-        [--flush-period S] [--use-sim-time] [--no-tf] [--boats NS ...] [--ros-args ...]
+        [--flush-period S] [--use-sim-time] [--no-tf] [--boats NS ...] [--transports UDPv4|DEFAULT|...]
+        [--ros-args ...]
 """
 from __future__ import annotations
 
 import argparse
 import functools
 import math
+import os
 import sys
 import threading
 import time
@@ -457,7 +467,8 @@ class Recorder:
                 "bytes_written": str(self.bag.bytes_written),
                 "topics_written": str(sum(1 for t in self.bag.topics.values() if t.message_count)),
                 "gaps": str(len(g.gaps)), "messages_lost": str(g.missing),
-                "log_time": "sim (each boat's /clock)" if self.use_sim_time else "wall"}
+                "log_time": "sim (each boat's /clock)" if self.use_sim_time else "wall",
+                "fastdds_transports": os.environ.get(TRANSPORTS_ENV, "")}
         if self._sim_clock():  # its time is the boat's sim time (its /clock, taken here, not by an executor)
             vals["use_sim_time"] = "true"
         for v in self.vehicles:
@@ -608,11 +619,30 @@ def _parse(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
                    "/bb2/sensors/mountings (parameter tf_from_odom)")
     p.add_argument("--overwrite", action="store_true", help="allow a non-empty --out directory (parameter "
                                                             "overwrite)")
+    p.add_argument("--transports", default=None, metavar="FASTDDS_TRANSPORTS",
+                   help=f"Fast DDS builtin transports of the recorder's process ({TRANSPORTS_ENV}: UDPv4, DEFAULT = "
+                        f"shared memory and UDPv4, SHM, ...; set before ROS starts, so not a parameter); default: "
+                        f"the environment's {TRANSPORTS_ENV}, else {RECORDER_TRANSPORTS}")
     from rclpy.utilities import remove_ros_args
 
     ros_argv = list(argv)
     args = p.parse_args(remove_ros_args(args=["prog", *argv])[1:])
     return args, ros_argv
+
+
+TRANSPORTS_ENV = "FASTDDS_BUILTIN_TRANSPORTS"
+RECORDER_TRANSPORTS = "UDPv4"
+"""The recorder's Fast DDS transports when neither ``--transports`` nor its environment name others: UDP only (see
+the module docstring: a starved reader on the shared-memory transport can lose writers for good)."""
+
+
+def recorder_transports(option: str | None, environ: dict[str, str]) -> str:
+    """The Fast DDS builtin transports the recorder's process uses: ``--transports``, else the environment's
+    ``FASTDDS_BUILTIN_TRANSPORTS``, else :data:`RECORDER_TRANSPORTS`."""
+    for value in (option, environ.get(TRANSPORTS_ENV)):
+        if value is not None and value.strip():
+            return value.strip()
+    return RECORDER_TRANSPORTS
 
 
 NODE_NAME = "recorder"
@@ -671,6 +701,7 @@ def _main(argv: Sequence[str] | None) -> int:
         return bad
     argv = list(sys.argv[1:] if argv is None else argv)
     args, ros_argv = _parse(argv)
+    os.environ[TRANSPORTS_ENV] = recorder_transports(args.transports, dict(os.environ))  # before ROS starts
     try:
         rclpy.init(args=[NODE_NAME, *ros_argv], signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl's own message names the bad params file / argument
@@ -727,7 +758,7 @@ def _main(argv: Sequence[str] | None) -> int:
                    queue_depth=int(depth), use_sim_time=use_sim_time, node=node, boats=boats,
                    status_period_s=status_period)
     print(f"bb2-record: recording {len(specs)} topics" + (f" of each of {len(boats)} boats" if boats else "")
-          + f" into {out}", flush=True)
+          + f" into {out} (Fast DDS transports {os.environ.get(TRANSPORTS_ENV)})", flush=True)
     heap.settle()  # no 30-45 ms collector pause while recording (the simulator may wait for its acks)
     code = 0
     try:

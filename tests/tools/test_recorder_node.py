@@ -4,6 +4,7 @@ served from the recorder's own wait set); its command-line options remain as a c
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -18,7 +19,7 @@ pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ros2_tooling import tooling_env, tooling_venv  # noqa: E402  (tests/ros2_tooling.py)
-from rosenv import claimed_domain, ros_env  # noqa: E402
+from rosenv import SpinningNode, claimed_domain, ros_env  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -164,3 +165,78 @@ def test_the_recorder_says_its_own_status_on_the_boats_sim_time_and_records_it(t
     counts = json.loads((tmp_path / "published" / f"recorder-{proc.pid}.json").read_text())
     assert counts["published"]["/bb2/status"] == len(rows), (counts, len(rows))
 
+
+
+def _fastdds_shared_memory(pid: int) -> list[str]:
+    """The Fast DDS shared-memory segments and ports process ``pid`` has mapped (``/dev/shm/fastrtps_*``)."""
+    lines = Path(f"/proc/{pid}/maps").read_text().splitlines()
+    return sorted({ln.split()[-1] for ln in lines if "/dev/shm/fastrtps_" in ln})
+
+
+def test_the_recorders_transports_come_from_its_option_then_its_environment_then_udp():
+    from bb2_tools.recorder import RECORDER_TRANSPORTS, TRANSPORTS_ENV, recorder_transports
+
+    assert RECORDER_TRANSPORTS == "UDPv4"
+    assert recorder_transports(None, {}) == recorder_transports(" ", {TRANSPORTS_ENV: ""}) == "UDPv4"
+    assert recorder_transports(None, {TRANSPORTS_ENV: "SHM"}) == "SHM"
+    assert recorder_transports("DEFAULT", {TRANSPORTS_ENV: "SHM"}) == "DEFAULT"
+
+
+@pytest.mark.parametrize("transports", [None, "DEFAULT"])
+def test_the_recorder_hears_the_graph_over_udp_only_unless_told_otherwise(tmp_path, transports):
+    """By default the recorder's process maps no Fast DDS shared memory (UDP only: a starved reader there cannot be
+    left on a replaced port) while the publisher beside it keeps its own, and it records every message and says its
+    transports; ``--transports DEFAULT`` gives it shared memory again."""
+    from rclpy.duration import Duration
+
+    from bb2_msgs_py import conversions as cv
+    from bb2_msgs_py.contract import message_class, qos_profile
+    from bb2_tools.bagfile import BagReader
+
+    domain = claimed_domain()
+    bag = tmp_path / "bag"
+    env = ros_env(domain)
+    env.pop("FASTDDS_BUILTIN_TRANSPORTS", None)
+    proc = subprocess.Popen([sys.executable, "-m", "bb2_tools.recorder", "--out", str(bag), "--topics", "/clock",
+                             *(["--transports", transports] if transports else []),
+                             "--ros-args", "-p", "status_period_s:=0.0"],
+                            cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    n = 300
+    pub = SpinningNode("transport_probe", domain).start()
+    try:
+        clock = pub.node.create_publisher(message_class("rosgraph_msgs/msg/Clock"), "/clock", qos_profile("/clock"))
+        deadline = time.monotonic() + 90
+        while clock.get_subscription_count() == 0:  # the writer has matched the recorder's reader
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate() if proc.poll() else ""
+            time.sleep(0.05)
+        mine, its = _fastdds_shared_memory(os.getpid()), _fastdds_shared_memory(proc.pid)
+        # the writer matches the recorder's reader before the reader matches it (a message then would be a head
+        # gap): warm-up messages at t < 100 s until one is acknowledged, then the n counted ones at t >= 100 s
+        warm = 0
+        while True:
+            clock.publish(cv.clock_message(0.05 * warm))
+            warm += 1
+            if clock.wait_for_all_acked(Duration(seconds=0.5)):
+                break
+            assert proc.poll() is None and time.monotonic() < deadline, "the recorder never acknowledged"
+        for k in range(n):
+            clock.publish(cv.clock_message(100.0 + 0.05 * k))
+            if k % 50 == 49:
+                time.sleep(0.05)
+        # every message acknowledged by the recorder before the writer goes (a UDP datagram a loaded machine dropped
+        # comes back at the writer's next heartbeat, up to 3 s later)
+        assert clock.wait_for_all_acked(Duration(seconds=60)), "the recorder did not acknowledge every message"
+    finally:
+        pub.close()
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    assert mine, "the test's own participant maps Fast DDS shared memory (the default transports)"
+    expected = transports or "UDPv4"
+    assert f"(Fast DDS transports {expected})" in out, out
+    if transports is None:
+        assert its == [], its
+    else:
+        assert its, "--transports DEFAULT: the recorder maps shared memory as the nodes do"
+    recorded = [m.clock.sec + m.clock.nanosec * 1e-9 for _t, _log, m in BagReader(bag).messages("/clock")]
+    assert sorted(round(t, 3) for t in recorded if t >= 100.0) == [round(100.0 + 0.05 * k, 3) for k in range(n)], out
