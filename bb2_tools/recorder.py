@@ -636,12 +636,22 @@ RECORDER_TRANSPORTS = "UDPv4"
 the module docstring: a starved reader on the shared-memory transport can lose writers for good)."""
 
 
+FASTDDS_TRANSPORTS = ("DEFAULT", "DEFAULTv6", "SHM", "UDPv4", "UDPv6", "LARGE_DATA", "LARGE_DATAv6")
+"""Fast DDS's builtin transports values a recorder can hear the graph with (``NONE`` cannot); ``LARGE_DATA`` may
+carry its options (``LARGE_DATA?max_msg_size=1MB``)."""
+
+
 def recorder_transports(option: str | None, environ: dict[str, str]) -> str:
     """The Fast DDS builtin transports the recorder's process uses: ``--transports``, else the environment's
-    ``FASTDDS_BUILTIN_TRANSPORTS``, else :data:`RECORDER_TRANSPORTS`."""
-    for value in (option, environ.get(TRANSPORTS_ENV)):
+    ``FASTDDS_BUILTIN_TRANSPORTS``, else :data:`RECORDER_TRANSPORTS`.  A value Fast DDS does not know (it would fall
+    back to its default with a log line) or ``NONE`` raises ``ValueError`` naming where it came from."""
+    for value, where in ((option, "--transports"), (environ.get(TRANSPORTS_ENV), TRANSPORTS_ENV)):
         if value is not None and value.strip():
-            return value.strip()
+            value = value.strip()
+            if value.split("?", 1)[0] not in FASTDDS_TRANSPORTS:
+                raise ValueError(f"{where} {value!r}: not a Fast DDS builtin transports value a recorder can use "
+                                 f"(one of {', '.join(FASTDDS_TRANSPORTS)})")
+            return value
     return RECORDER_TRANSPORTS
 
 
@@ -701,7 +711,11 @@ def _main(argv: Sequence[str] | None) -> int:
         return bad
     argv = list(sys.argv[1:] if argv is None else argv)
     args, ros_argv = _parse(argv)
-    os.environ[TRANSPORTS_ENV] = recorder_transports(args.transports, dict(os.environ))  # before ROS starts
+    try:
+        os.environ[TRANSPORTS_ENV] = recorder_transports(args.transports, dict(os.environ))  # before ROS starts
+    except ValueError as exc:
+        print(f"bb2-record: error: {exc}", file=sys.stderr)
+        return 2
     try:
         rclpy.init(args=[NODE_NAME, *ros_argv], signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl's own message names the bad params file / argument

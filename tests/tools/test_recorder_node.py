@@ -180,6 +180,20 @@ def test_the_recorders_transports_come_from_its_option_then_its_environment_then
     assert recorder_transports(None, {}) == recorder_transports(" ", {TRANSPORTS_ENV: ""}) == "UDPv4"
     assert recorder_transports(None, {TRANSPORTS_ENV: "SHM"}) == "SHM"
     assert recorder_transports("DEFAULT", {TRANSPORTS_ENV: "SHM"}) == "DEFAULT"
+    assert recorder_transports("LARGE_DATA?max_msg_size=1MB", {}) == "LARGE_DATA?max_msg_size=1MB"
+    for option, env, named in (("FOO", {}, "--transports 'FOO'"), (None, {TRANSPORTS_ENV: "NONE"}, TRANSPORTS_ENV)):
+        with pytest.raises(ValueError, match=named):
+            recorder_transports(option, env)
+
+
+def test_the_recorder_refuses_transports_fast_dds_does_not_know_with_one_line(tmp_path):
+    """Fast DDS itself would fall back to its default transports with a log line: the recorder says it and stops."""
+    p = subprocess.run([sys.executable, "-m", "bb2_tools.recorder", "--out", str(tmp_path / "bag"), "--transports",
+                        "UDP4"], cwd=tmp_path, env=ros_env(claimed_domain()), capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 2 and p.stderr.startswith("bb2-record: error: --transports 'UDP4': not a Fast DDS"), \
+        p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and not (tmp_path / "bag").exists(), p.stderr
 
 
 @pytest.mark.parametrize("transports", [None, "DEFAULT"])
