@@ -40,7 +40,9 @@ from bb2_ros.node_common import time_msg  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 RATE_HZ = 50.0
-COMMAND_TIMEOUT_S = 0.4
+COMMAND_TIMEOUT_S = 2.0  # wall s; the bench's 20 Hz commands from this test process come late on a loaded machine
+# (0.4 s and 1.0 s were missed beside two CPU hogs and graph tests: the failsafe engaged in examples that
+# expected none)
 MAX_AGE_S = 5.0  # sim s; generous: the bench's stamps lag on a loaded machine (2.5x real time)
 THROTTLE_S = 2.0
 PLANE_LIMIT_RAD = math.radians(30.0)  # bb2_sim/data/rom_model.json actuators.plane_limit_deg
@@ -153,14 +155,20 @@ class Bench(SpinningNode):
         with self.lock:
             return np.array([p for w, p in self.prop_state if w >= t0])
 
-    def wait_settled(self, planes_rad: float, timeout: float = 15.0) -> None:
-        """Until the applied planes and propeller equal the valid command (the rate limiters converged)."""
+    def wait_settled(self, planes_rad: float, timeout: float = 15.0, hold_s: float = 0.4) -> None:
+        """Until the applied planes and propeller equal the valid command (the rate limiters converged): every
+        state received over the last ``hold_s`` wall s, all after this call began (a loaded bench reads states
+        late: one state at the command could be followed by older ones still on their way, e.g. the dip of a
+        command changed just before)."""
         t0 = time.monotonic()
         while time.monotonic() - t0 < timeout:
+            now = time.monotonic()
             with self.lock:
-                ok = (self.planes_state and np.allclose(self.planes_state[-1][1], planes_rad, atol=1e-12)
-                      and self.prop_state and abs(self.prop_state[-1][1] - VALID_RPS) < 1e-12)
-            if ok:
+                planes = [p for w, p in self.planes_state if w >= max(t0, now - hold_s)]
+                props = [p for w, p in self.prop_state if w >= max(t0, now - hold_s)]
+            if now - t0 >= hold_s and len(planes) >= 5 and len(props) >= 5 \
+                    and np.allclose(planes, planes_rad, rtol=0, atol=1e-12) and np.allclose(props, VALID_RPS, rtol=0,
+                                                                                               atol=1e-12):
                 return
             time.sleep(0.02)
         raise AssertionError(f"the applied planes did not settle at {planes_rad} rad")
@@ -278,7 +286,9 @@ def bad_command(draw):
             values = (values * 2)[:len(names)]
     frame = draw(st.sampled_from(["base_link_frd", "map", "", "odom"])) if defect == "frame" else "base_link"
     age_s = draw(st.floats(MAX_AGE_S + 0.3, 1e4)) if defect == "stale" else None
-    ahead_s = draw(st.floats(1.0, 1e6)) if defect == "future" else None
+    # ahead of the bench's clock by more than that clock lags the node's on a loaded machine (1 s sim ahead was
+    # not ahead of the node once, beside two CPU hogs: the command was not rejected as future)
+    ahead_s = draw(st.floats(MAX_AGE_S, 1e6)) if defect == "future" else None
     return target, defect, values, names, frame, age_s, ahead_s
 
 
@@ -359,8 +369,12 @@ def test_huge_commands_are_clamped_to_the_actuator_limits(bench, planes, omega):
     try:
         bench.send_planes(planes)
         bench.send_prop(omega)
-        deadline = t0 + 0.5
-        while len(bench.planes_since(t0)) < 3 and time.monotonic() < deadline:  # a few ticks applied
+        # until the applied planes left 0 towards the command (it was integrated), at most 2 s: counting the
+        # plane states that arrived since t0 let a loaded bench, reading states published before the command,
+        # end the hold before the node had stepped on it once
+        deadline = t0 + 2.0
+        while time.monotonic() < deadline and not any(np.all(np.sign(p) == np.sign(planes)) and np.all(p != 0.0)
+                                                      for p in bench.planes_since(t0)):
             time.sleep(0.005)
         bench.send_planes([bench.valid_planes_rad] * 5)  # the hold ends here, not at the autopilot's next turn
         bench.send_prop(VALID_RPS * TWO_PI)
@@ -380,7 +394,7 @@ def test_huge_commands_are_clamped_to_the_actuator_limits(bench, planes, omega):
 
 
 @settings(max_examples=6, deadline=None)
-@given(silence_s=st.sampled_from([0.1, 1.0]), spam_invalid=st.booleans())
+@given(silence_s=st.sampled_from([0.1, 3.0]), spam_invalid=st.booleans())  # within, beyond COMMAND_TIMEOUT_S
 def test_failsafe_engages_on_stale_commands_and_releases(bench, silence_s, spam_invalid):
     v = 0.05
     bench.valid_planes_rad = v
