@@ -166,7 +166,6 @@ def test_the_recorder_says_its_own_status_on_the_boats_sim_time_and_records_it(t
     assert counts["published"]["/bb2/status"] == len(rows), (counts, len(rows))
 
 
-
 def _fastdds_shared_memory(pid: int) -> list[str]:
     """The Fast DDS shared-memory segments and ports process ``pid`` has mapped (``/dev/shm/fastrtps_*``)."""
     lines = Path(f"/proc/{pid}/maps").read_text().splitlines()
