@@ -57,7 +57,7 @@ class L1Autopilot(Node):
         self.cache = StampedCache()
         self.states: dict[int, object] = {}
         self.rates: dict[int, tuple[float, float]] = {}
-        self.counts = {"answered": 0, "replayed": 0, "rejected": 0, "errors": 0}
+        self.counts = {"answered": 0, "rejected": 0, "errors": 0}
         self.pub = {n: contract_publisher(node, n) for n in TOPICS[3:5]}
         self.sub_rate = node.create_subscription(message_class("geometry_msgs/msg/Vector3Stamped"),
                                                  node_topic_name("/bb2/guidance/rate_cmd"), self._on_rate,
@@ -67,7 +67,8 @@ class L1Autopilot(Node):
             "mission": self.mission.name,
             "callback_scheduling": self.callback_scheduling, "stack": self.stack.name,
             "state_source": source,
-            "adaptation": str(self.stack.adaptation).lower(), **{k: str(v) for k, v in self.counts.items()}})
+            "adaptation": str(self.stack.adaptation).lower(),
+            **{k: str(v) for k, v in (self.counts | self.cache.counts()).items()}})
 
     def _on_rate(self, msg) -> None:
         try:
@@ -89,7 +90,6 @@ class L1Autopilot(Node):
 
     def _offer(self, ns: int, *, state=None, rate=None) -> None:
         if self.cache.replay(ns):
-            self.counts["replayed"] += 1
             return
         if state is not None:
             self.states[ns] = state

@@ -41,19 +41,19 @@ class Mixer(Node):
         self.mission = mission_only(mission_file)
         self.mixer = build_piece(self.mission, build_mixer)  # only the mixer: no hull, no path, no guidance
         self.cache = StampedCache()
-        self.counts = {"answered": 0, "replayed": 0, "rejected": 0}
+        self.counts = {"answered": 0, "rejected": 0}
         self.pub = contract_publisher(node, "/bb2/planes/cmd")
         self.sub = node.create_subscription(message_class("sensor_msgs/msg/JointState"),
                                             node_topic_name("/bb2/autopilot/vh_cmd"), self._on_vh,
                                             qos_profile("/bb2/autopilot/vh_cmd", reader=True))
         self.status = NodeStatus(node, "bb2/mixer", period, lambda: {
             "mission": self.mission.name,
-            "callback_scheduling": self.callback_scheduling, **{k: str(v) for k, v in self.counts.items()}})
+            "callback_scheduling": self.callback_scheduling,
+            **{k: str(v) for k, v in (self.counts | self.cache.counts()).items()}})
 
     def _on_vh(self, msg) -> None:
         ns = cv.stamp_to_ns(msg.header.stamp)
         if self.cache.replay(ns):
-            self.counts["replayed"] += 1
             return
         try:
             dV, dH = cv.vh_from_message(msg)

@@ -931,23 +931,50 @@ class NodeStatus:
         self.pub_diagnostics.publish(msg)
 
 
+REPLAY_MIN_INTERVAL_S = 0.05
+"""Wall seconds within which a node answers a copy of a state it answered only once: copies that close together are
+a backlog (a node that was busy or starting finds the state re-sent many times in its reader's queue and takes the
+copies at once), not the lockstep simulator's re-sends, which come ``lockstep_retry_s`` (0.1 s) apart.  Answering
+every copy of such a backlog floods every reader: 55 copies of the state at t = 0 taken at once by a path follower
+that had just started made 330 messages in 20 ms down the chain, more than a busy recorder's UDP receive buffer held,
+and its reliable readers waited a heartbeat (3 s) for the repair.  A re-send that comes sooner than this after the
+last answer is not lost: the next re-send is answered."""
+
+
 class StampedCache:
     """The messages a node published for an input stamp, to replay them when the same input comes again
     (the lockstep simulator re-sends an unanswered state: every stage answers it again, identically,
-    without stepping its controller twice)."""
+    without stepping its controller twice).  A copy taken within :data:`REPLAY_MIN_INTERVAL_S` of the last time the
+    answer went out is a backlog copy: handled, not answered again.
 
-    def __init__(self):
+    Counts (the nodes' statuses): ``replayed`` answers published again, ``copies_skipped`` backlog copies not
+    answered again, ``stale_ignored`` inputs older than the cached one."""
+
+    def __init__(self, min_interval_s: float = REPLAY_MIN_INTERVAL_S, clock: Callable[[], float] = time.monotonic):
         self.stamp_ns: int | None = None
         self.messages: list[tuple[Any, Any]] = []
+        self.min_interval_s = float(min_interval_s)
+        self._clock = clock
+        self._sent_at = -math.inf  # when the cached answer last went out (clock s)
+        self.replayed = self.copies_skipped = self.stale_ignored = 0
 
     def replay(self, stamp_ns: int) -> bool:
-        """Re-publish the cached answer if ``stamp_ns`` is the cached stamp; True if the input is handled
-        (replayed, or older than the cache and ignored)."""
+        """Re-publish the cached answer if ``stamp_ns`` is the cached stamp (unless it went out less than
+        ``min_interval_s`` ago); True if the input is handled (replayed, skipped as a backlog copy, or older than the
+        cache and ignored)."""
         if self.stamp_ns is None or stamp_ns > self.stamp_ns:
             return False
-        if stamp_ns == self.stamp_ns:
-            for pub, msg in self.messages:
-                pub.publish(msg)
+        if stamp_ns < self.stamp_ns:
+            self.stale_ignored += 1
+            return True
+        now = self._clock()
+        if now - self._sent_at < self.min_interval_s:
+            self.copies_skipped += 1
+            return True
+        self._sent_at = now
+        self.replayed += 1
+        for pub, msg in self.messages:
+            pub.publish(msg)
         return True
 
     def store(self, stamp_ns: int, messages: list[tuple[Any, Any]],
@@ -956,6 +983,11 @@ class StampedCache:
         self.stamp_ns, self.messages = stamp_ns, list(replay_also) + list(messages)
         for pub, msg in messages:
             pub.publish(msg)
+        self._sent_at = self._clock()
+
+    def counts(self) -> dict[str, int]:
+        """What became of the copies and stale inputs (status values)."""
+        return {"replayed": self.replayed, "copies_skipped": self.copies_skipped, "stale_ignored": self.stale_ignored}
 
 
 def mission_only(mission_file: str):

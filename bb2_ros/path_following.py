@@ -76,7 +76,7 @@ class PathFollowing(Node):
         self.stack = None
         self.length_m = float("nan")
         self.cache = StampedCache()
-        self.counts = {"states": 0, "answered": 0, "replayed": 0, "waiting_for_path": 0, "errors": 0}
+        self.counts = {"states": 0, "answered": 0, "waiting_for_path": 0, "errors": 0}
         self.finished = False
         self.rejoined_at_s = ""  # the sim time this node joined a run under way ('' = it started with the run)
         self._stepped = False
@@ -94,7 +94,7 @@ class PathFollowing(Node):
             "state_source": source,
             "path_received": str(self.stack is not None).lower(), "finished": str(self.finished).lower(),
             "rejoined_at_s": self.rejoined_at_s,
-            **{k: str(v) for k, v in self.counts.items()}})
+            **{k: str(v) for k, v in (self.counts | self.cache.counts()).items()}})
 
     def _build(self, path) -> None:
         if self.stack is not None:
@@ -129,7 +129,6 @@ class PathFollowing(Node):
             self.counts["waiting_for_path"] += 1
             return
         if self.cache.replay(stamp_ns):
-            self.counts["replayed"] += 1
             return
         stack = self.stack
         try:
