@@ -37,13 +37,14 @@ level once a message was lost), each boat's step acknowledged, and its process's
 nodes say theirs).  With ``--use-sim-time`` in a boat's graph it is stamped on the boat's simulation time (its
 ``use_sim_time`` value says true), so its statuses count CPU per simulated step like a node's.
 
-Transport: the recorder's own process talks to the graph over UDP only (Fast DDS ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``,
-set for its process alone; ``--transports`` or that variable in its environment choose others); the nodes keep
-Fast DDS's default shared memory between themselves.  In the shared-memory transport a reader's port that does not
-answer its health check in time (a recorder at nice +10 starved on a loaded machine) can be replaced under the
-writers that re-open it, while the reader keeps listening on the old one: the writers' messages then go where no one
-reads, for the rest of the run (Fast DDS ``SharedMemGlobal::open_port``).  Over UDP a starved recorder only falls
-behind, and the reliable writers repair what it missed from their histories.
+Transport: the recorder's own process talks to the graph over UDP only (Fast DDS ``FASTDDS_BUILTIN_TRANSPORTS``
+``UDPv4``, with 4 MiB socket buffers, :data:`RECORDER_TRANSPORTS`, set for its process alone; ``--transports`` or
+that variable in its environment choose others); the nodes keep Fast DDS's default shared memory between themselves.
+In the shared-memory transport a reader's port that does not answer its health check in time (a recorder at nice +10
+starved on a loaded machine) can be replaced under the writers that re-open it, while the reader keeps listening on
+the old one: the writers' messages then go where no one reads, for the rest of the run (Fast DDS
+``SharedMemGlobal::open_port``).  Over UDP a starved recorder only falls behind, and the reliable writers repair
+what it missed from their histories; the large receive buffer keeps bursts from needing that repair.
 
 Stopping: SIGINT or SIGTERM finish the bag (summary, ``rosbag2`` metadata record, metadata.yaml)
 and exit 0.  A SIGKILL loses at most the open chunk (``--chunk-size`` bytes, or
@@ -631,14 +632,22 @@ def _parse(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
 
 
 TRANSPORTS_ENV = "FASTDDS_BUILTIN_TRANSPORTS"
-RECORDER_TRANSPORTS = "UDPv4"
+RECORDER_SOCKETS_SIZE = 4 * 1024 * 1024
+"""Bytes asked for the send and receive buffers of the recorder's UDP sockets (Fast DDS ``sockets_size``).  The
+kernel caps the request at ``net.core.rmem_max`` and doubles it: 8 MiB where the maximum allows 4 MiB, 416 KiB on a
+default Linux (212992), against 208 KiB unasked.  A burst of small messages (each datagram costs a few KiB of the
+buffer) that a starved recorder does not drain in time is dropped by the kernel; its reliable readers then hold
+everything after the hole until the writer's next heartbeat (up to 3 s) repairs it, and a run ending meanwhile takes
+those messages with it."""
+RECORDER_TRANSPORTS = f"UDPv4?sockets_size={RECORDER_SOCKETS_SIZE}"
 """The recorder's Fast DDS transports when neither ``--transports`` nor its environment name others: UDP only (see
-the module docstring: a starved reader on the shared-memory transport can lose writers for good)."""
+the module docstring: a starved reader on the shared-memory transport can lose writers for good), with large socket
+buffers (:data:`RECORDER_SOCKETS_SIZE`)."""
 
 
 FASTDDS_TRANSPORTS = ("DEFAULT", "DEFAULTv6", "SHM", "UDPv4", "UDPv6", "LARGE_DATA", "LARGE_DATAv6")
-"""Fast DDS's builtin transports values a recorder can hear the graph with (``NONE`` cannot); ``LARGE_DATA`` may
-carry its options (``LARGE_DATA?max_msg_size=1MB``)."""
+"""Fast DDS's builtin transports values a recorder can hear the graph with (``NONE`` cannot); each may carry
+Fast DDS's options (``UDPv4?sockets_size=4194304``, ``LARGE_DATA?max_msg_size=1MB``)."""
 
 
 def recorder_transports(option: str | None, environ: dict[str, str]) -> str:

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -172,11 +174,23 @@ def _fastdds_shared_memory(pid: int) -> list[str]:
     return sorted({ln.split()[-1] for ln in lines if "/dev/shm/fastrtps_" in ln})
 
 
+def _udp_receive_buffers(pid: int) -> list[int] | None:
+    """The receive buffer sizes (bytes) of process ``pid``'s UDP sockets, from ``ss -uanmp`` (None without ``ss``)."""
+    if shutil.which("ss") is None:
+        return None
+    out = subprocess.run(["ss", "-uanmp"], capture_output=True, text=True, timeout=30).stdout.splitlines()
+    sizes = []
+    for line, nxt in zip(out, out[1:] + [""]):
+        if f"pid={pid}," in line and (m := re.search(r"\brb(\d+)", line + nxt)):
+            sizes.append(int(m.group(1)))
+    return sizes
+
+
 def test_the_recorders_transports_come_from_its_option_then_its_environment_then_udp():
     from bb2_tools.recorder import RECORDER_TRANSPORTS, TRANSPORTS_ENV, recorder_transports
 
-    assert RECORDER_TRANSPORTS == "UDPv4"
-    assert recorder_transports(None, {}) == recorder_transports(" ", {TRANSPORTS_ENV: ""}) == "UDPv4"
+    assert RECORDER_TRANSPORTS == "UDPv4?sockets_size=4194304"
+    assert recorder_transports(None, {}) == recorder_transports(" ", {TRANSPORTS_ENV: ""}) == RECORDER_TRANSPORTS
     assert recorder_transports(None, {TRANSPORTS_ENV: "SHM"}) == "SHM"
     assert recorder_transports("DEFAULT", {TRANSPORTS_ENV: "SHM"}) == "DEFAULT"
     assert recorder_transports("LARGE_DATA?max_msg_size=1MB", {}) == "LARGE_DATA?max_msg_size=1MB"
@@ -205,6 +219,7 @@ def test_the_recorder_hears_the_graph_over_udp_only_unless_told_otherwise(tmp_pa
     from bb2_msgs_py import conversions as cv
     from bb2_msgs_py.contract import message_class, qos_profile
     from bb2_tools.bagfile import BagReader
+    from bb2_tools.recorder import RECORDER_SOCKETS_SIZE, RECORDER_TRANSPORTS
 
     domain = claimed_domain()
     bag = tmp_path / "bag"
@@ -223,6 +238,7 @@ def test_the_recorder_hears_the_graph_over_udp_only_unless_told_otherwise(tmp_pa
             assert proc.poll() is None and time.monotonic() < deadline, proc.communicate() if proc.poll() else ""
             time.sleep(0.05)
         mine, its = _fastdds_shared_memory(os.getpid()), _fastdds_shared_memory(proc.pid)
+        buffers = _udp_receive_buffers(proc.pid)
         # the writer matches the recorder's reader before the reader matches it (a message then would be a head
         # gap): warm-up messages at t < 100 s until one is acknowledged, then the n counted ones at t >= 100 s
         warm = 0
@@ -245,10 +261,15 @@ def test_the_recorder_hears_the_graph_over_udp_only_unless_told_otherwise(tmp_pa
         out, err = proc.communicate(timeout=30)
     assert proc.returncode == 0, err
     assert mine, "the test's own participant maps Fast DDS shared memory (the default transports)"
-    expected = transports or "UDPv4"
+    expected = transports or RECORDER_TRANSPORTS
     assert f"(Fast DDS transports {expected})" in out, out
     if transports is None:
         assert its == [], its
+        # its sockets asked for RECORDER_SOCKETS_SIZE: the kernel caps the request at rmem_max and doubles it
+        rmem_max = int(Path("/proc/sys/net/core/rmem_max").read_text())
+        default = int(Path("/proc/sys/net/core/rmem_default").read_text())
+        if buffers is not None and 2 * min(RECORDER_SOCKETS_SIZE, rmem_max) > default:
+            assert max(buffers) == 2 * min(RECORDER_SOCKETS_SIZE, rmem_max), buffers
     else:
         assert its, "--transports DEFAULT: the recorder maps shared memory as the nodes do"
     recorded = [m.clock.sec + m.clock.nanosec * 1e-9 for _t, _log, m in BagReader(bag).messages("/clock")]
