@@ -79,7 +79,11 @@ def summarize(mission_file: Path, odom: list[tuple[float, np.ndarray]], statuses
     # the simulator's own account, which a monitor that matched its status late (a loaded machine: seconds) and
     # so missed the first statuses still gets whole: when the controllers took over, and every failsafe step since
     if fin.get("takeover_sim_time_s"):
-        out["failsafe_released_at_s"] = float(fin["takeover_sim_time_s"])
+        released = out["failsafe_released_at_s"] = float(fin["takeover_sim_time_s"])
+        # the statuses seen count from the takeover on, not from the first one without the failsafe: a status from
+        # before the first step says no failsafe yet (a monitor that matched early saw false, true, false: seen
+        # once in a test beside the fault matrix)
+        out["failsafe_after_release"] = any(f for f, v in zip(fs, statuses) if float(v["sim_time_s"]) > released)
     if "failsafe_steps_after_takeover" in fin:
         out["failsafe_steps_after_release"] = int(fin["failsafe_steps_after_takeover"])
         out["failsafe_after_release"] = out["failsafe_after_release"] or out["failsafe_steps_after_release"] > 0

@@ -297,6 +297,14 @@ def test_the_monitor_judges_the_takeover_from_the_simulators_counters_when_it_ma
     seen_late[-1]["failsafe_steps_after_takeover"] = "0"
     s = summarize(MISSION, [], seen_late)
     assert not s["failsafe_after_release"] and s["failsafe_released_at_s"] == 0.45
+    # a monitor that matched before the first step: no failsafe yet, then the failsafe until the takeover
+    early = [dict(ok, sim_time_s="0.0"), dict(ok, failsafe="true", sim_time_s="0.0"), dict(ok, sim_time_s="0.05"),
+             dict(ok, sim_time_s="15.0", state="finished", takeover_sim_time_s="0.050000",
+                  failsafe_steps_after_takeover="0")]
+    s = summarize(MISSION, [], early)
+    assert not s["failsafe_after_release"] and s["failsafe_released_at_s"] == 0.05
+    early.insert(3, dict(ok, failsafe="true", sim_time_s="7.0"))  # a failsafe status after the takeover counts
+    assert summarize(MISSION, [], early)["failsafe_after_release"]
     # a simulator without these keys: judged from the statuses seen, as before
     old = [dict(ok, failsafe="true", sim_time_s="0.2"), dict(ok, sim_time_s="0.5"), dict(ok, failsafe="true"), ok]
     s = summarize(MISSION, [], old)
