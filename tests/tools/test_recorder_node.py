@@ -274,3 +274,99 @@ def test_the_recorder_hears_the_graph_over_udp_only_unless_told_otherwise(tmp_pa
         assert its, "--transports DEFAULT: the recorder maps shared memory as the nodes do"
     recorded = [m.clock.sec + m.clock.nanosec * 1e-9 for _t, _log, m in BagReader(bag).messages("/clock")]
     assert sorted(round(t, 3) for t in recorded if t >= 100.0) == [round(100.0 + 0.05 * k, 3) for k in range(n)], out
+
+
+BURST = 300  # messages sent at once to a stopped recorder (the start-up burst that overflowed it was 330)
+BURST_SETTLE_S = 1.5  # after SIGCONT; a writer's heartbeat repairs a dropped datagram only ~3 s after the burst
+
+
+def _udp_drops(pid: int) -> int:
+    """Datagrams the kernel dropped on process ``pid``'s UDP sockets, their receive buffers full (``/proc/net/udp``'s
+    ``drops``)."""
+    inodes = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            link = os.readlink(fd)
+        except OSError:
+            continue
+        if link.startswith("socket:["):
+            inodes.add(link[8:-1])
+    drops = 0
+    for table in ("udp", "udp6"):
+        for line in Path(f"/proc/{pid}/net/{table}").read_text().splitlines()[1:]:
+            f = line.split()
+            if f[9] in inodes:
+                drops += int(f[12])
+    return drops
+
+
+def _burst_into_a_stopped_recorder(tmp_path, transports: str) -> tuple[list[float], int]:
+    """A recorder is SIGSTOPped (a starved process), ``BURST`` reliable messages go out at once, it runs again: wall
+    seconds from SIGCONT to each burst message's arrival in the bag, and the datagrams its sockets dropped."""
+    from rclpy.duration import Duration
+    from rclpy.qos import HistoryPolicy
+
+    from bb2_msgs_py import conversions as cv
+    from bb2_msgs_py.contract import message_class, qos_profile
+    from bb2_tools.bagfile import BagReader
+
+    domain = claimed_domain()
+    env = ros_env(domain)
+    env.pop("FASTDDS_BUILTIN_TRANSPORTS", None)
+    bag = tmp_path / f"bag_{len(list(tmp_path.glob('bag_*')))}"
+    proc = subprocess.Popen([sys.executable, "-m", "bb2_tools.recorder", "--out", str(bag), "--topics",
+                             "/bb2/planes/cmd", "--transports", transports, "--ros-args", "-p", "status_period_s:=0.0"],
+                            cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    node = SpinningNode("burst_probe", domain).start()
+    try:
+        q = qos_profile("/bb2/planes/cmd")
+        q.history, q.depth = HistoryPolicy.KEEP_LAST, BURST + 50  # the writer keeps the whole burst for repairs
+        w = node.node.create_publisher(message_class("sensor_msgs/msg/JointState"), "/bb2/planes/cmd", q)
+        deadline = time.monotonic() + 90
+        warm = 0
+        while not (w.get_subscription_count() and w.wait_for_all_acked(Duration(seconds=0.5))):
+            if w.get_subscription_count():
+                w.publish(cv.planes_message(-1.0 - warm, [0.0] * 5))  # warm-up, stamped t < 0
+                warm += 1
+            assert proc.poll() is None and time.monotonic() < deadline, "the recorder never matched"
+            time.sleep(0.05)
+        os.kill(proc.pid, signal.SIGSTOP)
+        time.sleep(0.2)
+        for k in range(BURST):
+            w.publish(cv.planes_message(0.05 * k, [0.0] * 5))
+        time.sleep(0.3)
+        cont = time.time()
+        os.kill(proc.pid, signal.SIGCONT)
+        assert w.wait_for_all_acked(Duration(seconds=30)), "the burst was never acknowledged"
+        drops = _udp_drops(proc.pid)
+    finally:
+        node.close()
+        try:
+            os.kill(proc.pid, signal.SIGCONT)
+        except ProcessLookupError:
+            pass
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    decoded = BagReader(bag).messages("/bb2/planes/cmd")
+    arrivals = [m.log_time_ns * 1e-9 - cont for m, (_t, _log, msg) in zip(BagReader(bag).raw_messages("/bb2/planes/cmd"),
+                                                                          decoded) if msg.header.stamp.sec >= 0]
+    assert len(arrivals) == BURST, (len(arrivals), out)
+    return arrivals, drops
+
+
+def test_a_burst_to_a_starved_recorder_waits_in_its_socket_not_for_a_repair(tmp_path):
+    """The recorder's sockets hold a burst of small messages while it is stopped (its 4 MiB buffers), so it has them
+    all as soon as it runs again; with the default buffers the kernel drops part of it and the reliable reader waits
+    for the writer's heartbeat (~3 s) to repair it (the control, where the defaults are that small)."""
+    from bb2_tools.recorder import RECORDER_SOCKETS_SIZE, RECORDER_TRANSPORTS
+
+    rmem_max = int(Path("/proc/sys/net/core/rmem_max").read_text())
+    if 2 * min(RECORDER_SOCKETS_SIZE, rmem_max) < 2 * 1024 * 1024:
+        pytest.skip(f"net.core.rmem_max is {rmem_max} bytes: the recorder's sockets get "
+                    f"{2 * min(RECORDER_SOCKETS_SIZE, rmem_max)} bytes, too few to hold {BURST} messages for sure")
+    arrivals, drops = _burst_into_a_stopped_recorder(tmp_path, RECORDER_TRANSPORTS)
+    assert drops == 0 and max(arrivals) < BURST_SETTLE_S, (drops, max(arrivals))
+    if int(Path("/proc/sys/net/core/rmem_default").read_text()) <= 212992:  # the control: the defaults drop some
+        arrivals, drops = _burst_into_a_stopped_recorder(tmp_path, "UDPv4")
+        assert drops > 0, "with the default socket buffers no datagram of the burst was dropped: the test shows nothing"
