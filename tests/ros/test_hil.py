@@ -123,7 +123,9 @@ def test_external_autopilot_flies_the_mission_in_real_time(tmp_path):
     # the middleware's threads at callback_priority)
     assert ("the middleware's threads: SCHED_FIFO 40 (" if may_fifo else "normal (SCHED_FIFO 40 refused") \
         in st[-1]["callback_scheduling"], st[-1]
-    first_ok = next(i for i, s in enumerate(st) if s["failsafe"] == "false")
+    # the first status that says the autopilot took over (one from before the first step says no failsafe yet, and
+    # the failsafe may then engage at the first step: seen beside the fault matrix and two CPU hogs)
+    first_ok = next(i for i, s in enumerate(st) if s["takeover_sim_time_s"])
     assert float(st[first_ok]["sim_time_s"]) < 3.0  # the autopilot took over within the first seconds
     last = st[-1]
     assert all(s["failsafe"] == "false" for s in st[first_ok:]) and last["failsafe_steps_after_takeover"] == "0", (
