@@ -937,8 +937,8 @@ a backlog (a node that was busy or starting finds the state re-sent many times i
 copies at once), not the lockstep simulator's re-sends, which come ``lockstep_retry_s`` (0.1 s) apart.  Answering
 every copy of such a backlog floods every reader: 55 copies of the state at t = 0 taken at once by a path follower
 that had just started made 330 messages in 20 ms down the chain, more than a busy recorder's UDP receive buffer held,
-and its reliable readers waited a heartbeat (3 s) for the repair.  A re-send that comes sooner than this after the
-last answer is not lost: the next re-send is answered."""
+and its reliable readers waited for the writers' repair, which that run's end (1 s later) did not.  A re-send that
+comes sooner than this after the last answer is not lost: the next re-send is answered."""
 
 
 class StampedCache:

@@ -637,8 +637,9 @@ RECORDER_SOCKETS_SIZE = 4 * 1024 * 1024
 kernel caps the request at ``net.core.rmem_max`` and doubles it: 8 MiB where the maximum allows 4 MiB, 416 KiB on a
 default Linux (212992), against 208 KiB unasked.  A burst of small messages (each datagram costs a few KiB of the
 buffer) that a starved recorder does not drain in time is dropped by the kernel; its reliable readers then hold
-everything after the hole until the writer's next heartbeat (up to 3 s) repairs it, and a run ending meanwhile takes
-those messages with it."""
+everything after the hole until the writer repairs it at a heartbeat (0.1 s after the burst in the test, but not
+before the end of the run, 1 s after its burst, that lost commands this way), and a run ending meanwhile takes those
+messages with it."""
 RECORDER_TRANSPORTS = f"UDPv4?sockets_size={RECORDER_SOCKETS_SIZE}"
 """The recorder's Fast DDS transports when neither ``--transports`` nor its environment name others: UDP only (see
 the module docstring: a starved reader on the shared-memory transport can lose writers for good), with large socket
