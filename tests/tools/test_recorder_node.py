@@ -277,7 +277,7 @@ def test_the_recorder_hears_the_graph_over_udp_only_unless_told_otherwise(tmp_pa
 
 
 BURST = 300  # messages sent at once to a stopped recorder (the start-up burst that overflowed it was 330)
-BURST_SETTLE_S = 1.5  # after SIGCONT; a writer's heartbeat repairs a dropped datagram only ~3 s after the burst
+BURST_SETTLE_S = 1.5  # the whole burst is in the bag this soon after SIGCONT (a bound for a loaded machine)
 
 
 def _udp_drops(pid: int) -> int:
@@ -358,7 +358,7 @@ def _burst_into_a_stopped_recorder(tmp_path, transports: str) -> tuple[list[floa
 def test_a_burst_to_a_starved_recorder_waits_in_its_socket_not_for_a_repair(tmp_path):
     """The recorder's sockets hold a burst of small messages while it is stopped (its 4 MiB buffers), so it has them
     all as soon as it runs again; with the default buffers the kernel drops part of it and the reliable reader waits
-    for the writer's heartbeat (~3 s) to repair it (the control, where the defaults are that small)."""
+    for the writer to repair it at a heartbeat (the control, where the defaults are that small)."""
     from bb2_tools.recorder import RECORDER_SOCKETS_SIZE, RECORDER_TRANSPORTS
 
     rmem_max = int(Path("/proc/sys/net/core/rmem_max").read_text())
