@@ -174,6 +174,19 @@ def _fastdds_shared_memory(pid: int) -> list[str]:
     return sorted({ln.split()[-1] for ln in lines if "/dev/shm/fastrtps_" in ln})
 
 
+def _net_core(name: str) -> int:
+    """A kernel socket limit, ``/proc/sys/net/core/<name>`` (bytes)."""
+    return int(Path(f"/proc/sys/net/core/{name}").read_text())
+
+
+def _recorder_receive_buffer() -> int:
+    """What the recorder's sockets get for RECORDER_SOCKETS_SIZE: the kernel caps the request at rmem_max and
+    doubles it."""
+    from bb2_tools.recorder import RECORDER_SOCKETS_SIZE
+
+    return 2 * min(RECORDER_SOCKETS_SIZE, _net_core("rmem_max"))
+
+
 def _udp_receive_buffers(pid: int) -> list[int] | None:
     """The receive buffer sizes (bytes) of process ``pid``'s UDP sockets, from ``ss -uanmp`` (None without ``ss``)."""
     if shutil.which("ss") is None:
@@ -219,7 +232,7 @@ def test_the_recorder_hears_the_graph_over_udp_only_unless_told_otherwise(tmp_pa
     from bb2_msgs_py import conversions as cv
     from bb2_msgs_py.contract import message_class, qos_profile
     from bb2_tools.bagfile import BagReader
-    from bb2_tools.recorder import RECORDER_SOCKETS_SIZE, RECORDER_TRANSPORTS
+    from bb2_tools.recorder import RECORDER_TRANSPORTS
 
     domain = claimed_domain()
     bag = tmp_path / "bag"
@@ -265,11 +278,9 @@ def test_the_recorder_hears_the_graph_over_udp_only_unless_told_otherwise(tmp_pa
     assert f"(Fast DDS transports {expected})" in out, out
     if transports is None:
         assert its == [], its
-        # its sockets asked for RECORDER_SOCKETS_SIZE: the kernel caps the request at rmem_max and doubles it
-        rmem_max = int(Path("/proc/sys/net/core/rmem_max").read_text())
-        default = int(Path("/proc/sys/net/core/rmem_default").read_text())
-        if buffers is not None and 2 * min(RECORDER_SOCKETS_SIZE, rmem_max) > default:
-            assert max(buffers) == 2 * min(RECORDER_SOCKETS_SIZE, rmem_max), buffers
+        # its sockets asked for RECORDER_SOCKETS_SIZE
+        if buffers is not None and _recorder_receive_buffer() > _net_core("rmem_default"):
+            assert max(buffers) == _recorder_receive_buffer(), buffers
     else:
         assert its, "--transports DEFAULT: the recorder maps shared memory as the nodes do"
     recorded = [m.clock.sec + m.clock.nanosec * 1e-9 for _t, _log, m in BagReader(bag).messages("/clock")]
@@ -359,14 +370,13 @@ def test_a_burst_to_a_starved_recorder_waits_in_its_socket_not_for_a_repair(tmp_
     """The recorder's sockets hold a burst of small messages while it is stopped (its 4 MiB buffers), so it has them
     all as soon as it runs again; with the default buffers the kernel drops part of it and the reliable reader waits
     for the writer to repair it at a heartbeat (the control, where the defaults are that small)."""
-    from bb2_tools.recorder import RECORDER_SOCKETS_SIZE, RECORDER_TRANSPORTS
+    from bb2_tools.recorder import RECORDER_TRANSPORTS
 
-    rmem_max = int(Path("/proc/sys/net/core/rmem_max").read_text())
-    if 2 * min(RECORDER_SOCKETS_SIZE, rmem_max) < 2 * 1024 * 1024:
-        pytest.skip(f"net.core.rmem_max is {rmem_max} bytes: the recorder's sockets get "
-                    f"{2 * min(RECORDER_SOCKETS_SIZE, rmem_max)} bytes, too few to hold {BURST} messages for sure")
+    if _recorder_receive_buffer() < 2 * 1024 * 1024:
+        pytest.skip(f"net.core.rmem_max is {_net_core('rmem_max')} bytes: the recorder's sockets get "
+                    f"{_recorder_receive_buffer()} bytes, too few to hold {BURST} messages for sure")
     arrivals, drops = _burst_into_a_stopped_recorder(tmp_path, RECORDER_TRANSPORTS)
     assert drops == 0 and max(arrivals) < BURST_SETTLE_S, (drops, max(arrivals))
-    if int(Path("/proc/sys/net/core/rmem_default").read_text()) <= 212992:  # the control: the defaults drop some
+    if _net_core("rmem_default") <= 212992:  # the control: the defaults drop some
         arrivals, drops = _burst_into_a_stopped_recorder(tmp_path, "UDPv4")
         assert drops > 0, "with the default socket buffers no datagram of the burst was dropped: the test shows nothing"
