@@ -44,7 +44,9 @@ In the shared-memory transport a reader's port that does not answer its health c
 starved on a loaded machine) can be replaced under the writers that re-open it, while the reader keeps listening on
 the old one: the writers' messages then go where no one reads, for the rest of the run (Fast DDS
 ``SharedMemGlobal::open_port``).  Over UDP a starved recorder only falls behind, and the reliable writers repair
-what it missed from their histories; the large receive buffer keeps bursts from needing that repair.
+what it missed from their histories; the large receive buffer keeps bursts from needing that repair.  It discovers
+the graph through its domain's multicast discovery port: when another socket holds that port unshared (an ephemeral
+port, on domains 102..214) it would hear no one, so it says so and exits 2 (:func:`discovery_blocked`).
 
 Stopping: SIGINT or SIGTERM finish the bag (summary, ``rosbag2`` metadata record, metadata.yaml)
 and exit 0.  A SIGKILL loses at most the open chunk (``--chunk-size`` bytes, or
@@ -80,6 +82,7 @@ from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, GLOBAL_TOPICS, SCENE_TO
                                   select_topics)
 from bb2_tools.bagfile import (GAPS_KEY, MULTI_PUBLISHER_TYPES, RECORDER_STATUS_NAME, BagError, BagWriter,
                                 SequenceGaps, qos_entry, status_source, stream_source)
+from bb2_tools.discovery_port import TRANSPORTS_ENV, discovery_blocked
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros import heap
 from bb2_ros.node_common import (NodeStatus, node_frame, restore_signals, stop_signals, take_all, time_msg,
@@ -631,7 +634,6 @@ def _parse(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
     return args, ros_argv
 
 
-TRANSPORTS_ENV = "FASTDDS_BUILTIN_TRANSPORTS"
 RECORDER_SOCKETS_SIZE = 4 * 1024 * 1024
 """Bytes asked for the send and receive buffers of the recorder's UDP sockets (Fast DDS ``sockets_size``).  The
 kernel caps the request at ``net.core.rmem_max`` and doubles it: 8 MiB where the maximum allows 4 MiB, 416 KiB on a
@@ -734,6 +736,8 @@ def _main(argv: Sequence[str] | None) -> int:
     node = None
     try:
         node = Node(NODE_NAME)  # with parameter services: spin_once serves them
+        if (deaf := discovery_blocked(os.environ, node.context.get_domain_id())) is not None:
+            raise ContractError(deaf)
         par = _parameters(node)
         use_sim_time = args.use_sim_time or bool(node.get_parameter("use_sim_time").value)
         topics = args.topics if args.topics is not None else [t for t in par["topics"] if t] or None

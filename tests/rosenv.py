@@ -206,25 +206,55 @@ def library_trajectory(mission_file: Path):
 
 _domain_claims: list[int] = []  # the claims' lock descriptors, held until this test process ends
 claimed_ids: list[int] = []     # the domains this test process claimed
+_port_holds: list = []          # their discovery ports' sockets, held with the claims
 
 
 def claimed_domain() -> int:
     """A ROS domain id in 102..232 that no other test process of this machine holds: claimed with the launcher's
     lock files (``bb2_tools.graph_monitor.claim_domain``; bb2-launch picks its own in 1..101), so tests running in
     parallel (``pytest -n``) or beside another test run never share a domain.  The claim is held until this test
-    process ends."""
+    process ends.  Its discovery multicast port is held too (shared, as Fast DDS binds it:
+    ``bb2_tools.discovery_port.hold_discovery_port``): most of these domains' ports lie in Linux's ephemeral range,
+    and an unrelated socket given that port would leave a recorder on UDP alone deaf.  A domain whose port is held
+    unshared already is passed over."""
+    import os
     import random
 
+    from bb2_tools.discovery_port import hold_discovery_port
     from bb2_tools.graph_monitor import claim_domain
 
     ids = range(102, 233)
     for d in random.sample(ids, len(ids)):
         fd = claim_domain(d)
-        if fd is not None:
-            _domain_claims.append(fd)
-            claimed_ids.append(d)
-            return d
-    raise AssertionError("every ROS domain in 102..232 is claimed by another test process")
+        if fd is None:
+            continue
+        port = hold_discovery_port(d)
+        if port is None:
+            os.close(fd)
+            continue
+        _domain_claims.append(fd)
+        _port_holds.append(port)
+        claimed_ids.append(d)
+        return d
+    raise AssertionError("every ROS domain in 102..232 is claimed by another test process or its discovery port "
+                         "is taken")
+
+
+def block_discovery_port(domain_id: int):
+    """Take ``domain_id``'s discovery port (claimed by this process, :func:`claimed_domain`) from Fast DDS as an
+    unrelated ephemeral socket would: the claim's shared hold is closed and a socket without ``SO_REUSEADDR`` binds
+    the port.  Returns that socket; close it to free the port."""
+    import socket
+
+    from bb2_tools.discovery_port import discovery_multicast_port
+
+    port = discovery_multicast_port(domain_id)
+    for s in [s for s in _port_holds if s.getsockname()[1] == port]:
+        _port_holds.remove(s)
+        s.close()
+    plain = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    plain.bind(("0.0.0.0", port))
+    return plain
 
 
 def descendants(root: int) -> list[int]:

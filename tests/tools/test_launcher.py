@@ -862,6 +862,52 @@ def test_domain_claims_keep_two_launches_off_one_domain(tmp_path):
         os.close(f)
 
 
+def _plainly_held_port(ids) -> tuple[int, object]:
+    """A domain of ``ids`` whose discovery port this test can hold unshared (as an ephemeral socket would), and the
+    socket holding it."""
+    import random
+    import socket
+
+    from bb2_tools.discovery_port import discovery_multicast_port
+
+    for d in random.sample(list(ids), len(ids)):
+        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            s.bind(("0.0.0.0", discovery_multicast_port(d)))
+            return d, s
+        except OSError:
+            s.close()
+    raise AssertionError(f"every discovery port of domains {ids} is in use")
+
+
+def test_a_domain_whose_discovery_port_is_taken_is_passed_over_or_refused(tmp_path, capsys):
+    """No node on a domain whose discovery multicast port another socket holds unshared would discover another
+    (bb2_tools.discovery_port): bb2-launch passes such a domain over when it picks one, and refuses it, with the
+    port and its holder, when it is given; before any node starts."""
+    pytest.importorskip("rclpy")
+    locks = tmp_path / "locks"
+    blocked, plain = _plainly_held_port(M.SAFE_DOMAIN_IDS)
+    try:
+        free = next(d for d in M.SAFE_DOMAIN_IDS if d != blocked and M.discovery_blocked({}, d) is None)
+        held = [M.claim_domain(d, locks) for d in M.SAFE_DOMAIN_IDS if d not in (blocked, free)]
+        blocked_first = type("BlockedFirst", (), {"sample": lambda _self, ids, k: sorted(ids, key=lambda d: d != blocked)})()
+        mon = M.free_domain_id(lock_dir=locks, listen_s=0.1, rng=blocked_first)
+        try:
+            assert mon.domain_id == free, (mon.domain_id, blocked, free)
+        finally:
+            mon.close()
+        for f in held:
+            os.close(f)
+        mission = _short_mission(tmp_path, 5.0)
+        assert L.main([str(mission), "--domain-id", str(blocked), "--out", str(tmp_path / "run")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"bb2-launch: error: ROS domain {blocked}'s discovery port: UDP port "
+                              f"{7400 + 250 * blocked} is held by pid {os.getpid()} "), err
+        assert len(err.strip().splitlines()) == 1 and "ROS_DOMAIN_ID in 0..101" in err, err
+    finally:
+        plain.close()
+
+
 def test_publication_counts_are_merged_over_the_recorded_topics_and_a_killed_process_is_named(tmp_path):
     """``merge_publication_counts``: the node processes' count files are summed per recorded topic into the bag's
     publication_counts.json (the Foxglove viewer's own file set aside); a process killed by a signal left no file,
