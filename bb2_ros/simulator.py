@@ -113,6 +113,10 @@ Command validation, the handshake, the watchdog and the failsafe are the ROS-fre
 the vehicle's ``base_link``, stale or future stamps are rejected (never integrated); plane commands beyond the
 ROM's plane limit and propeller commands outside its rps limits are clamped; each with a throttled warning and a
 counter in the status.  This node turns messages into the gate's inputs and its decisions into steps and messages.
+
+Its status (``/bb2/status``, ``bb2/simulator``, every ``status_period_s``) says ``state``: ``starting`` until the first
+step is integrated (waiting for the controllers' first commands or the recorder; ``failsafe`` is then ``false``,
+nothing decided yet), ``running``, ``finished`` at the end of the duration, ``diverged`` (with ``error``).
 """
 from __future__ import annotations
 
@@ -163,6 +167,11 @@ TOPICS_IN = ("/bb2/planes/cmd", "/bb2/propeller/cmd", "/bb2/mission/progress",  
 TWO_PI = 2.0 * math.pi
 RT_GIVE_UP_S = 1.0  # real time: a SCHED_FIFO stepping thread late on every tick for this long (wall s) drops it
 RECORDER_WAIT_WARN_S = 1.0  # a hold for the recorder longer than this (wall s) is said, once per hold
+
+
+def status_state(*, diverged: bool, finished: bool, steps: int) -> str:
+    """The status's ``state``: ``diverged``, ``finished``, ``starting`` (no step integrated yet) or ``running``."""
+    return "diverged" if diverged else "finished" if finished else "starting" if steps == 0 else "running"
 
 
 class Simulator(Node):
@@ -958,7 +967,7 @@ class Simulator(Node):
         if dt > 0.2:
             self._rate_measured = (self.sim.n - self._steps_at_status) / dt
             self._steps_at_status, self._wall_at_status = self.sim.n, now
-        state = "diverged" if self.diverged else "finished" if self.finished else "running"
+        state = status_state(diverged=bool(self.diverged), finished=self.finished, steps=self.sim.n)
         realtime = self.time_mode is TimeMode.REALTIME
         vals = {"mode": self.time_mode.value, "state": state, "sim_time_s": f"{self.t:.6f}", "step": str(self.sim.n),
                 "failsafe": str(self.gate.failsafe).lower(), "failsafe_reason": self.gate.failsafe_reason,

@@ -266,7 +266,10 @@ def test_realtime_clock_starts_once_the_controllers_answer_the_first_state(bench
     with b.lock:
         ts = [s.t for s in b.states]
     assert set(ts) == {0.0} and len(ts) >= 5, ts[-10:]   # only the first state, re-sent
-    assert float(b.last_status().get("sim_time_s", "nan")) == 0.0, b.last_status()
+    waiting = b.last_status()
+    assert float(waiting.get("sim_time_s", "nan")) == 0.0, waiting
+    # nothing decided yet: it says so (state starting), not a failsafe, not running
+    assert (waiting["state"], waiting["step"], waiting["failsafe"]) == ("starting", "0", "false"), waiting
     omega = 2 * math.pi * 1.2
     b.send(planes_rad=np.zeros(5), omega=omega, t=0.0)   # the answer to the first state
     b.stream(1.5, planes_rad=np.zeros(5), omega=omega)   # then answers as they come
@@ -274,6 +277,9 @@ def test_realtime_clock_starts_once_the_controllers_answer_the_first_state(bench
     with b.lock:
         fs = [s for s in b.status if float(s.get("sim_time_s", 0)) > 0]
     assert fs and all(s["failsafe"] == "false" for s in fs), [s["failsafe_reason"] for s in fs]
+    assert all(s["state"] == "running" for s in fs), [s["state"] for s in fs]
+    with b.lock:
+        assert all(s["state"] == "starting" for s in b.status if float(s.get("sim_time_s", 0)) == 0), b.status
     assert all(int(s["failsafe_steps"]) == 0 == int(s["failsafe_steps_after_takeover"]) for s in fs), fs[-1]
     assert all(float(s["takeover_sim_time_s"]) == 0.0 for s in fs), fs[-1]  # the first step went on the answers
     sim.send_signal(signal.SIGINT)
