@@ -1,4 +1,4 @@
-"""A ROS domain's discovery multicast port, and whether a participant on UDP alone can hear it.
+"""A ROS domain's discovery multicast port, and whether the machine's participants can hear each other on it.
 
 DDS participants announce themselves (SPDP) to UDP multicast port ``7400 + 250 * domain_id`` (the DDSI-RTPS
 well-known port mapping, its defaults PB = 7400, DG = 250, d0 = 0).  Fast DDS binds that port with

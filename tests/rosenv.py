@@ -215,7 +215,7 @@ def claimed_domain() -> int:
     parallel (``pytest -n``) or beside another test run never share a domain.  The claim is held until this test
     process ends.  Its discovery multicast port is held too (shared, as Fast DDS binds it:
     ``bb2_tools.discovery_port.hold_discovery_port``): most of these domains' ports lie in Linux's ephemeral range,
-    and an unrelated socket given that port would leave a recorder on UDP alone deaf.  A domain whose port is held
+    and an unrelated socket given that port would leave every participant there deaf.  A domain whose port is held
     unshared already is passed over."""
     import os
     import random

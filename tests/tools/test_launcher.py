@@ -888,16 +888,25 @@ def test_a_domain_whose_discovery_port_is_taken_is_passed_over_or_refused(tmp_pa
     locks = tmp_path / "locks"
     blocked, plain = _plainly_held_port(M.SAFE_DOMAIN_IDS)
     try:
-        free = next(d for d in M.SAFE_DOMAIN_IDS if d != blocked and M.discovery_blocked({}, d) is None)
+        # the other candidate: claimed on this machine too, so no launch of another test runs there meanwhile
+        free, free_claim = next((d, fd) for d in M.SAFE_DOMAIN_IDS if d != blocked
+                                and M.discovery_blocked({}, d) is None and (fd := M.claim_domain(d)) is not None)
         held = [M.claim_domain(d, locks) for d in M.SAFE_DOMAIN_IDS if d not in (blocked, free)]
-        blocked_first = type("BlockedFirst", (), {"sample": lambda _self, ids, k: sorted(ids, key=lambda d: d != blocked)})()
-        mon = M.free_domain_id(lock_dir=locks, listen_s=0.1, rng=blocked_first)
+
+        class BlockedFirst:  # free_domain_id's random order, with the blocked domain first
+            @staticmethod
+            def sample(ids, _k):
+                return sorted(ids, key=lambda d: d != blocked)
+
         try:
-            assert mon.domain_id == free, (mon.domain_id, blocked, free)
+            mon = M.free_domain_id(lock_dir=locks, listen_s=0.1, rng=BlockedFirst())
+            try:
+                assert mon.domain_id == free, (mon.domain_id, blocked, free)
+            finally:
+                mon.close()
         finally:
-            mon.close()
-        for f in held:
-            os.close(f)
+            for f in held + [free_claim]:
+                os.close(f)
         mission = _short_mission(tmp_path, 5.0)
         assert L.main([str(mission), "--domain-id", str(blocked), "--out", str(tmp_path / "run")]) == 2
         err = capsys.readouterr().err
