@@ -37,6 +37,7 @@ from enum import StrEnum
 from typing import Any, Callable, Iterable, Sequence
 
 from bb2_ros import heap
+from bb2_ros.discovery_port import discovery_blocked
 
 EXIT_OK = 0
 EXIT_RUNTIME_ERROR = 1
@@ -719,7 +720,8 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
     argv)``, built in order; rclpy is initialised with ``init_args``.  ``composed``: each node reads the ROS
     arguments of its own ``argv`` only (:func:`node_options`).  Spins until SIGINT/SIGTERM or until any node is
     ``done``; the exit status is the worst of the nodes' (2 > 1 > 0).  A node that cannot be built stops the
-    process before it spins (exit 2, one line naming the node)."""
+    process before it spins (exit 2, one line naming the node), and so does a domain whose discovery port another
+    socket holds unshared (:func:`bb2_ros.discovery_port.discovery_blocked`: no node there would hear another)."""
     from bb2_msgs_py.ros_env import ros_environment_or_error
 
     if (bad := ros_environment_or_error(process)) is not None:  # called directly from the venv: find ROS itself
@@ -750,6 +752,9 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
                 return EXIT_BAD_INPUT
             finally:
                 _node_options = {}
+        if shells and (deaf := discovery_blocked(os.environ, _node_of(shells[0]).context.get_domain_id())):
+            _error(process, deaf)  # it would run and hear no one: say so and stop
+            return EXIT_BAD_INPUT
         executor = make_executor()
         for shell in shells:
             executor.add_node(_node_of(shell))

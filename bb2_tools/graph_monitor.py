@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Iterable
 
 from bb2_ros.node_common import take_all
-from bb2_tools.discovery_port import discovery_blocked
+from bb2_ros.discovery_port import discovery_blocked
 from bb2_tools.supervisor import LaunchError
 
 SAFE_DOMAIN_IDS = range(1, 102)  # ROS 2 docs: 0..101 never collide with Linux ephemeral ports
@@ -272,7 +272,7 @@ def domain_monitor(domain_id: int | None, **monitor_kw) -> GraphMonitor:
     """A :class:`GraphMonitor` on ``domain_id``, claimed for this process when no other holds it
     (``domain_lock_fd`` None: another launch holds it), or with ``domain_id`` None on a free one
     (:func:`free_domain_id`).  A domain whose discovery port another socket holds unshared is refused (LaunchError,
-    :func:`bb2_tools.discovery_port.discovery_blocked`): its nodes would never find each other."""
+    :func:`bb2_ros.discovery_port.discovery_blocked`): its nodes would never find each other."""
     if domain_id is None:
         return free_domain_id(**monitor_kw)
     if (blocked := discovery_blocked(dict(os.environ), domain_id)) is not None:
@@ -285,7 +285,7 @@ def domain_monitor(domain_id: int | None, **monitor_kw) -> GraphMonitor:
 def free_domain_id(*, rng: random.Random | None = None, tries: int = 8, listen_s: float = 0.5,
                    lock_dir: Path | None = None, **monitor_kw) -> GraphMonitor:
     """A :class:`GraphMonitor` on a random domain id (1..101) that no other launch of this machine has claimed
-    (:func:`claim_domain`), whose discovery port is free to share (:func:`bb2_tools.discovery_port.discovery_blocked`)
+    (:func:`claim_domain`), whose discovery port is free to share (:func:`bb2_ros.discovery_port.discovery_blocked`)
     and where no other node is seen; the claim is held until the monitor is closed."""
     rng = rng or random.Random()
     candidates = rng.sample(list(SAFE_DOMAIN_IDS), len(SAFE_DOMAIN_IDS))  # every id, in random order

@@ -82,7 +82,7 @@ from bb2_msgs_py.contract import (FRAME_MAP, FRAME_ODOM, GLOBAL_TOPICS, SCENE_TO
                                   select_topics)
 from bb2_tools.bagfile import (GAPS_KEY, MULTI_PUBLISHER_TYPES, RECORDER_STATUS_NAME, BagError, BagWriter,
                                 SequenceGaps, qos_entry, status_source, stream_source)
-from bb2_tools.discovery_port import TRANSPORTS_ENV, discovery_blocked
+from bb2_ros.discovery_port import TRANSPORTS_ENV, discovery_blocked
 from bb2_msgs_py.conversions import leading_stamp_ns, seconds_to_ns
 from bb2_ros import heap
 from bb2_ros.node_common import (NodeStatus, node_frame, restore_signals, stop_signals, take_all, time_msg,

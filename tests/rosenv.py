@@ -214,13 +214,13 @@ def claimed_domain() -> int:
     lock files (``bb2_tools.graph_monitor.claim_domain``; bb2-launch picks its own in 1..101), so tests running in
     parallel (``pytest -n``) or beside another test run never share a domain.  The claim is held until this test
     process ends.  Its discovery multicast port is held too (shared, as Fast DDS binds it:
-    ``bb2_tools.discovery_port.hold_discovery_port``): most of these domains' ports lie in Linux's ephemeral range,
+    ``bb2_ros.discovery_port.hold_discovery_port``): most of these domains' ports lie in Linux's ephemeral range,
     and an unrelated socket given that port would leave every participant there deaf.  A domain whose port is held
     unshared already is passed over."""
     import os
     import random
 
-    from bb2_tools.discovery_port import hold_discovery_port
+    from bb2_ros.discovery_port import hold_discovery_port
     from bb2_tools.graph_monitor import claim_domain
 
     ids = range(102, 233)
@@ -246,7 +246,7 @@ def block_discovery_port(domain_id: int):
     the port.  Returns that socket; close it to free the port."""
     import socket
 
-    from bb2_tools.discovery_port import discovery_multicast_port
+    from bb2_ros.discovery_port import discovery_multicast_port
 
     port = discovery_multicast_port(domain_id)
     for s in [s for s in _port_holds if s.getsockname()[1] == port]:

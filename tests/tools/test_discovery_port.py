@@ -1,5 +1,5 @@
 """A domain's discovery multicast port: the RTPS mapping, a shared hold that keeps it from ephemeral sockets, and the
-recorder's refusal to run deaf on UDP alone when an unshared socket holds it (``bb2_tools.discovery_port``)."""
+recorder's refusal to run deaf on UDP alone when an unshared socket holds it (``bb2_ros.discovery_port``)."""
 from __future__ import annotations
 
 import os
@@ -17,7 +17,7 @@ from rosenv import SpinningNode, block_discovery_port, claimed_domain, ros_env  
 
 
 def test_the_discovery_port_is_the_rtps_well_known_port():
-    from bb2_tools.discovery_port import discovery_multicast_port
+    from bb2_ros.discovery_port import discovery_multicast_port
 
     assert [discovery_multicast_port(d) for d in (0, 1, 101, 150, 232)] == [7400, 7650, 32650, 44900, 65400]
     for bad in (-1, 233):
@@ -26,7 +26,7 @@ def test_the_discovery_port_is_the_rtps_well_known_port():
 
 
 def test_a_shared_hold_keeps_unshared_sockets_off_the_port_and_a_plain_socket_blocks_it():
-    from bb2_tools.discovery_port import (discovery_blocked, discovery_multicast_port, discovery_port_blocked,
+    from bb2_ros.discovery_port import (discovery_blocked, discovery_multicast_port, discovery_port_blocked,
                                           hold_discovery_port)
     from bb2_tools.recorder import RECORDER_TRANSPORTS
 
@@ -66,7 +66,7 @@ def test_a_recorder_whose_discovery_port_is_taken_says_so_and_records_nothing_un
     from bb2_msgs_py import conversions as cv
     from bb2_msgs_py.contract import message_class, qos_profile
     from bb2_tools.bagfile import BagReader
-    from bb2_tools.discovery_port import discovery_multicast_port
+    from bb2_ros.discovery_port import discovery_multicast_port
 
     d = claimed_domain()
     env = ros_env(d)
@@ -107,3 +107,24 @@ def test_a_recorder_whose_discovery_port_is_taken_says_so_and_records_nothing_un
     finally:
         plain.close()
     assert 2.0 in [m.clock.sec + m.clock.nanosec * 1e-9 for _t, _log, m in BagReader(bag).messages("/clock")], out
+
+
+def test_a_graph_node_whose_discovery_port_is_taken_says_so_and_stops():
+    """Every node process (``node_common.run_nodes``) checks its domain once its nodes exist: deaf, it would wait
+    for commands or a state that never come (the simulator in lockstep at its first state)."""
+    from bb2_ros.discovery_port import discovery_multicast_port
+    from rosenv import spawn_node
+
+    d = claimed_domain()
+    plain = block_discovery_port(d)
+    try:
+        for module, process in (("bb2_ros.mixer", "mixer"), ("bb2_ros.simulator", "simulator")):
+            p = spawn_node(module, d, "-p", "mission_file:=missions/straight.yaml")
+            out, _ = p.communicate(timeout=120)
+            assert p.returncode == 2, (module, p.returncode, out[-2000:])
+            said = [ln for ln in out.splitlines() if ": error: " in ln]
+            assert len(said) == 1 and said[0].startswith(
+                f"{process}: error: ROS domain {d}'s discovery port: UDP port {discovery_multicast_port(d)} is held "
+                f"by pid {os.getpid()} ("), out[-2000:]
+    finally:
+        plain.close()

@@ -868,7 +868,7 @@ def _plainly_held_port(ids) -> tuple[int, object]:
     import random
     import socket
 
-    from bb2_tools.discovery_port import discovery_multicast_port
+    from bb2_ros.discovery_port import discovery_multicast_port
 
     for d in random.sample(list(ids), len(ids)):
         s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -882,7 +882,7 @@ def _plainly_held_port(ids) -> tuple[int, object]:
 
 def test_a_domain_whose_discovery_port_is_taken_is_passed_over_or_refused(tmp_path, capsys):
     """No node on a domain whose discovery multicast port another socket holds unshared would discover another
-    (bb2_tools.discovery_port): bb2-launch passes such a domain over when it picks one, and refuses it, with the
+    (bb2_ros.discovery_port): bb2-launch passes such a domain over when it picks one, and refuses it, with the
     port and its holder, when it is given; before any node starts."""
     pytest.importorskip("rclpy")
     locks = tmp_path / "locks"

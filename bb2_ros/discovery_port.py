@@ -10,8 +10,8 @@ range (32768..60999), which is why the ROS 2 documentation advises domains 0..10
 Every participant of the machine on that domain then misses the others' announcements, shared memory or not
 (measured with Fast DDS 2.14: two processes with its default transports never matched), unless it has unicast peers
 (``ROS_STATIC_PEERS``).  A graph there starts and hears nothing.  :func:`discovery_port_blocked` finds that case, so
-the recorder and bb2-launch can say it and stop.  :func:`hold_discovery_port` keeps the kernel from handing the port
-out at all while it is held.  The tests hold it for each domain they claim.
+the nodes (``node_common.run_nodes``), the recorder and bb2-launch can say it and stop.  :func:`hold_discovery_port`
+keeps the kernel from handing the port out at all while it is held.  The tests hold it for each domain they claim.
 """
 from __future__ import annotations
 
@@ -100,7 +100,7 @@ UDP_DISCOVERY_TRANSPORTS = ("DEFAULT", "UDPv4", "LARGE_DATA")
 
 def discovery_blocked(environ: dict[str, str], domain_id: int) -> str | None:
     """Why this process would hear no node of ``domain_id`` (its discovery multicast port held by a socket that does
-    not share it, :func:`bb2_tools.discovery_port.discovery_port_blocked`), or None: unicast peers configured, no
+    not share it, :func:`bb2_ros.discovery_port.discovery_port_blocked`), or None: unicast peers configured, no
     UDPv4 discovery (``SHM``, the v6 transports: not checked), or the port is Fast DDS's to share.  Checked once the
     participant exists, so a port it bound itself counts as shared, not blocked."""
     transports = environ.get(TRANSPORTS_ENV, "").strip() or "DEFAULT"
