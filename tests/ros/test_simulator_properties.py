@@ -79,6 +79,7 @@ class Bench(SpinningNode):
         self.node.create_subscription(message_class("std_msgs/msg/Float64MultiArray"), "/bb2/state_native",
                                       self._on_state, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
         self.valid_on = threading.Event()
+        self.send_lock = threading.Lock()  # the background autopilot's check-and-send, against stop_valid
         self.valid_planes_rad = 0.0
         self.autopilot_thread = threading.Thread(target=self._autopilot, daemon=True)
         self.start()
@@ -111,10 +112,18 @@ class Bench(SpinningNode):
 
     def _autopilot(self) -> None:
         while not self._stop.is_set():
-            if self.valid_on.is_set() and self.clock_ns > 0:
-                self.send_planes([self.valid_planes_rad] * 5)
-                self.send_prop(VALID_RPS * TWO_PI)
+            with self.send_lock:
+                if self.valid_on.is_set() and self.clock_ns > 0:
+                    self.send_planes([self.valid_planes_rad] * 5)
+                    self.send_prop(VALID_RPS * TWO_PI)
             time.sleep(0.05)
+
+    def stop_valid(self) -> None:
+        """Stop the background autopilot; once this returns, no valid command of it is still on its way out (one
+        sent after the test's own command would override it: seen beside two CPU hogs, a huge command never
+        applied)."""
+        with self.send_lock:
+            self.valid_on.clear()
 
     # -- sending
     def send_planes(self, rad, *, names=PLANE_JOINTS, frame="base_link", stamp_ns: int | None = None) -> None:
@@ -365,7 +374,7 @@ def test_huge_commands_are_clamped_to_the_actuator_limits(bench, planes, omega):
     bench.wait_speed_below(HOLD_SPEED_MPS)
     before = _counters(bench.fresh_status())
     t0 = time.monotonic()
-    bench.valid_on.clear()
+    bench.stop_valid()
     try:
         bench.send_planes(planes)
         bench.send_prop(omega)
@@ -401,7 +410,7 @@ def test_failsafe_engages_on_stale_commands_and_releases(bench, silence_s, spam_
     try:
         bench.wait_settled(v)
         t0 = time.monotonic()
-        bench.valid_on.clear()
+        bench.stop_valid()
         while time.monotonic() - t0 < silence_s:
             if spam_invalid:  # invalid commands keep coming: they must not count as 'alive'
                 bench.send_planes([math.nan] * 5)
