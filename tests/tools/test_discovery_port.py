@@ -1,5 +1,5 @@
-"""A domain's discovery multicast port: the RTPS mapping, a shared hold that keeps it from ephemeral sockets, and the
-recorder's refusal to run deaf on UDP alone when an unshared socket holds it (``bb2_ros.discovery_port``)."""
+"""A domain's discovery multicast port (``bb2_ros.discovery_port``): the RTPS mapping, a shared hold that keeps it
+from ephemeral sockets, and the recorder's and the nodes' refusal to run deaf when an unshared socket holds it."""
 from __future__ import annotations
 
 import os
@@ -27,7 +27,7 @@ def test_the_discovery_port_is_the_rtps_well_known_port():
 
 def test_a_shared_hold_keeps_unshared_sockets_off_the_port_and_a_plain_socket_blocks_it():
     from bb2_ros.discovery_port import (discovery_blocked, discovery_multicast_port, discovery_port_blocked,
-                                          hold_discovery_port)
+                                        hold_discovery_port)
     from bb2_tools.recorder import RECORDER_TRANSPORTS
 
     d = claimed_domain()  # its port is held shared by the claim
