@@ -18,6 +18,7 @@ from __future__ import annotations
 import errno
 import os
 import socket
+from collections.abc import Mapping
 from pathlib import Path
 
 RTPS_PORT_BASE = 7400  # PB: DDSI-RTPS 2.2 section 9.6.1.1, the default port base
@@ -98,7 +99,7 @@ UDP_DISCOVERY_TRANSPORTS = ("DEFAULT", "UDPv4", "LARGE_DATA")
 """Fast DDS builtin transports that discover over UDPv4 multicast (checked: ``UDPv4`` and ``DEFAULT``)."""
 
 
-def discovery_blocked(environ: dict[str, str], domain_id: int) -> str | None:
+def discovery_blocked(environ: Mapping[str, str], domain_id: int) -> str | None:
     """Why this process would hear no node of ``domain_id`` (its discovery multicast port held by a socket that does
     not share it, :func:`bb2_ros.discovery_port.discovery_port_blocked`), or None: unicast peers configured, no
     UDPv4 discovery (``SHM``, the v6 transports: not checked), or the port is Fast DDS's to share.  Checked once the

@@ -22,8 +22,8 @@ import time
 from pathlib import Path
 from typing import Iterable
 
-from bb2_ros.node_common import take_all
 from bb2_ros.discovery_port import discovery_blocked
+from bb2_ros.node_common import take_all
 from bb2_tools.supervisor import LaunchError
 
 SAFE_DOMAIN_IDS = range(1, 102)  # ROS 2 docs: 0..101 never collide with Linux ephemeral ports
@@ -275,7 +275,7 @@ def domain_monitor(domain_id: int | None, **monitor_kw) -> GraphMonitor:
     :func:`bb2_ros.discovery_port.discovery_blocked`): its nodes would never find each other."""
     if domain_id is None:
         return free_domain_id(**monitor_kw)
-    if (blocked := discovery_blocked(dict(os.environ), domain_id)) is not None:
+    if (blocked := discovery_blocked(os.environ, domain_id)) is not None:
         raise LaunchError(blocked)
     monitor = GraphMonitor(domain_id, **monitor_kw)
     monitor.domain_lock_fd = claim_domain(domain_id)
@@ -294,7 +294,7 @@ def free_domain_id(*, rng: random.Random | None = None, tries: int = 8, listen_s
         fd = claim_domain(d, lock_dir)
         if fd is None:  # another launch runs there
             continue
-        if discovery_blocked(dict(os.environ), d) is not None:  # no node there would discover another
+        if discovery_blocked(os.environ, d) is not None:  # no node there would discover another
             os.close(fd)
             continue
         mon = GraphMonitor(d, **monitor_kw)

@@ -206,7 +206,7 @@ def library_trajectory(mission_file: Path):
 
 _domain_claims: list[int] = []  # the claims' lock descriptors, held until this test process ends
 claimed_ids: list[int] = []     # the domains this test process claimed
-_port_holds: list = []          # their discovery ports' sockets, held with the claims
+_port_holds: dict = {}          # their discovery ports' sockets by domain, held with the claims
 
 
 def claimed_domain() -> int:
@@ -233,7 +233,7 @@ def claimed_domain() -> int:
             os.close(fd)
             continue
         _domain_claims.append(fd)
-        _port_holds.append(port)
+        _port_holds[d] = port
         claimed_ids.append(d)
         return d
     raise AssertionError("every ROS domain in 102..232 is claimed by another test process or its discovery port "
@@ -248,12 +248,10 @@ def block_discovery_port(domain_id: int):
 
     from bb2_ros.discovery_port import discovery_multicast_port
 
-    port = discovery_multicast_port(domain_id)
-    for s in [s for s in _port_holds if s.getsockname()[1] == port]:
-        _port_holds.remove(s)
-        s.close()
+    if (held := _port_holds.pop(domain_id, None)) is not None:
+        held.close()
     plain = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    plain.bind(("0.0.0.0", port))
+    plain.bind(("0.0.0.0", discovery_multicast_port(domain_id)))
     return plain
 
 
