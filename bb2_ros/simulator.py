@@ -114,9 +114,10 @@ the vehicle's ``base_link``, stale or future stamps are rejected (never integrat
 ROM's plane limit and propeller commands outside its rps limits are clamped; each with a throttled warning and a
 counter in the status.  This node turns messages into the gate's inputs and its decisions into steps and messages.
 
-Its status (``/bb2/status``, ``bb2/simulator``, every ``status_period_s``) says ``state``: ``starting`` until the first
-step is integrated (waiting for the controllers' first commands or the recorder; ``failsafe`` is then ``false``,
-nothing decided yet), ``running``, ``finished`` at the end of the duration, ``diverged`` (with ``error``).
+Its status (``/bb2/status``, ``bb2/simulator``) says ``state``: ``starting`` until the first step is integrated
+(waiting for the controllers' first commands or the recorder; ``failsafe`` is then ``false``, nothing decided yet),
+``running``, ``finished`` at the end of the duration, ``diverged`` (with ``error``).  It goes out at once on each
+change of state or failsafe (the first as the node comes up) and every ``status_period_s`` between.
 """
 from __future__ import annotations
 
@@ -417,6 +418,9 @@ class Simulator(Node):
         self.status_timer = node.create_timer(self.status_period_s, self._locked(self._publish_status), clock=steady)
         self.started = False
         self.start_timer = node.create_timer(0.02, self._locked(self._start), clock=steady)
+        # a status at once (``starting``; transient local, so a reader that matches later has it): a run killed
+        # or stopped within its first status period still says what the simulator was doing
+        self._publish_status()
         if self.time_mode is TimeMode.LOCKSTEP:
             self.watchdog = node.create_timer(min(0.01, self.lockstep_retry_s / 2), self._watchdog, clock=steady)
         else:  # on absolute wall deadlines (not an executor timer: no callback queue ahead)
@@ -868,6 +872,8 @@ class Simulator(Node):
             self._publish_status()
             self._end_when_recorded()
             return
+        if self.sim.n == 1:  # starting -> running: said at once, not at the next status period
+            self._publish_status()
         self._answered.clear()
         now = self._publish_trigger(clock=False)  # first: the controllers work on step n+1 while the samples go out
         if self.time_mode is TimeMode.REALTIME and self.answer_first_s > 0:

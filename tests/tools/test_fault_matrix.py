@@ -365,11 +365,12 @@ def check_killed(cell: Cell) -> None:
     assert ended == {n}, cell.stderr   # no other node failed
     st = cell.states
     assert cell.fault_at_s <= st[-1] < cell.duration_s - 1.0, (cell.fault_at_s, st[-1])
-    # starting until the first step, then running to the kill (a status every wall second: a short run killed early
-    # may have said only starting, or nothing)
+    # starting until the first step, then running to the kill: the simulator says each at once (before 2026-12-07
+    # only every wall second, and a real-time cell killed within its first second had recorded none), and the
+    # fault comes after the loop has closed, so both are in the bag
     states = [s.get("state") for s in cell.statuses]
     stepped = next((i for i, x in enumerate(states) if x != "starting"), len(states))
-    assert all(x == "running" for x in states[stepped:]), states
+    assert 0 < stepped < len(states) and all(x == "running" for x in states[stepped:]), states
     killed_topic = {"simulator": "/bb2/state_native", **OUTPUT}.get(n)
     if killed_topic and killed_topic not in cell.stamps:
         # killed before the recorder had matched its writer (seen beside two CPU hogs and with three cells at once:
