@@ -9,6 +9,7 @@ from typing import Any, Mapping
 import yaml
 
 from bb2_control.errors import ControlConfigError
+from bb2_sim.yaml_files import load as load_yaml
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
 
@@ -33,7 +34,7 @@ def load_mapping(path: str | Path) -> dict[str, Any]:
     if data is None:
         text = p.read_text()
         try:
-            data = json.loads(text) if p.suffix.lower() == ".json" else yaml.safe_load(text)
+            data = json.loads(text) if p.suffix.lower() == ".json" else load_yaml(text)
         except (json.JSONDecodeError, yaml.YAMLError) as exc:
             raise ControlConfigError(f"cannot parse {p}: {exc}") from None
         if not isinstance(data, dict):

@@ -27,6 +27,7 @@ from typing import Any
 import yaml
 
 from bb2_mission.schema import MISSIONS_DIR, Mission, MissionError, load_mission
+from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["FleetBoat", "Fleet", "load_fleet", "is_fleet_file"]
 
@@ -86,7 +87,7 @@ class Fleet:
 
 def _read(file: Path) -> dict[str, Any]:
     try:
-        doc = yaml.safe_load(file.read_text(encoding="utf-8"))
+        doc = load_yaml(file.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise MissionError(f"no fleet file at {file}") from None
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:

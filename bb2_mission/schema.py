@@ -73,6 +73,7 @@ from bb2_planner.terrain import PathBelowTerrainError, Terrain, TerrainError, Te
 from bb2_sim.environment import Environment, current_from_mapping, sea_from_mapping
 from bb2_sim.sea import SeaInputError
 from bb2_sim.sensors.config import SensorConfigError, SensorSpec, navigation_from_value, sensors_from_mapping
+from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["MissionError", "InitialState", "Limits", "Mission", "MISSIONS_DIR", "RPS_PATH_MEAN_SPEED", "FORMAT",
            "load_mission", "mission_from_dict", "initial_state"]
@@ -191,7 +192,7 @@ def _vec3(v: Any, what: str) -> tuple[float, float, float]:
 
 def _read_yaml(file: Path) -> dict[str, Any]:
     try:
-        doc = yaml.safe_load(file.read_text(encoding="utf-8"))
+        doc = load_yaml(file.read_text(encoding="utf-8"))
     except OSError as e:
         raise MissionError(f"{file}: cannot read mission file ({e.strerror})") from None
     except UnicodeDecodeError as e:

@@ -38,10 +38,10 @@ class ConversionError(ContractError):
 @lru_cache(maxsize=1)
 def sensor_model() -> dict[str, Any]:
     """The sensor model constants of ``data/sensors.yaml`` (units in the key names)."""
-    import yaml
+    from bb2_sim.yaml_files import load as load_yaml
 
     with open(SENSORS_YAML, encoding="utf-8") as fh:
-        return yaml.safe_load(fh)
+        return load_yaml(fh)
 
 
 # ----------------------------------------------------------------------------------------- time

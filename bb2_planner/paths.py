@@ -28,6 +28,7 @@ import numpy as np
 import yaml
 
 from bb2_planner.bernstein import FRAMES, BernsteinPath, PathError
+from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["PathError", "FORMAT", "DATA_DIR", "path_from_dict", "path_to_dict", "load_path",
            "save_path", "available_paths", "read_path_metadata"]
@@ -131,7 +132,7 @@ def read_path_metadata(name_or_file: str | Path) -> dict[str, Any]:
     except OSError as e:
         raise PathError(f"{f}: cannot read ({e.strerror})") from None
     try:
-        return json.loads(text) if f.suffix == ".json" else yaml.safe_load(text)
+        return json.loads(text) if f.suffix == ".json" else load_yaml(text)
     except (json.JSONDecodeError, yaml.YAMLError) as e:
         raise PathError(f"{f}: not valid {f.suffix[1:].upper()} ({e})") from None
 

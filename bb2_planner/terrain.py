@@ -26,9 +26,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from bb2_planner.bernstein import BernsteinPath, fit_control_points
+from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["TerrainError", "TerrainOutOfBoundsError", "PathBelowTerrainError", "Terrain",
            "SyntheticCanyon", "synthetic_canyon", "load_canyon_parameters", "Thalweg",
@@ -277,7 +277,7 @@ def load_canyon_parameters(file: str | Path | None = None) -> dict[str, Any]:
     """The canyon parameter document (default ``data/terrain/synthetic_canyon.yaml``)."""
     file = Path(file) if file is not None else DATA_DIR / "synthetic_canyon.yaml"
     try:
-        return yaml.safe_load(file.read_text())
+        return load_yaml(file.read_text())
     except OSError as e:
         raise TerrainError(f"{file}: cannot read ({e.strerror})") from None
 

@@ -201,16 +201,12 @@ def command_line_params(argv: Sequence[str] | None = None) -> dict[str, str]:
 
 def _check_command_line_value(name: str, raw: str, default: Any) -> None:
     import yaml
+    from bb2_sim.yaml_files import load as load_yaml
 
-    try:
-        v = yaml.safe_load(raw) if raw != "" else ""
+    try:  # read as rcl reads it (YAML 1.2: 1e3 is a double)
+        v = load_yaml(raw) if raw != "" else ""
     except yaml.YAMLError:
         v = raw
-    if isinstance(v, str) and isinstance(default, float):  # rcl reads 1e3 as a double, YAML 1.1 as a string
-        try:
-            v = float(v)
-        except ValueError:
-            pass
     ok = True
     if isinstance(default, bool):
         ok = isinstance(v, bool)

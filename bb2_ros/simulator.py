@@ -1043,6 +1043,7 @@ def load_sea_file(path: str, mission_env):
     from pathlib import Path
 
     import yaml
+    from bb2_sim.yaml_files import load as load_yaml
 
     from bb2_sim.environment import (DESCRIPTION_FORMAT, Environment, current_from_mapping,
                                      environment_from_description, sea_from_mapping)
@@ -1050,7 +1051,7 @@ def load_sea_file(path: str, mission_env):
     f = Path(path)
     try:
         text = f.read_text(encoding="utf-8")
-        doc = json.loads(text) if f.suffix.lower() == ".json" else yaml.safe_load(text)
+        doc = json.loads(text) if f.suffix.lower() == ".json" else load_yaml(text)
     except (OSError, UnicodeDecodeError, ValueError, yaml.YAMLError) as exc:
         raise NodeConfigError(f"parameter 'sea_file': cannot read {path}: {exc}") from None
     try:

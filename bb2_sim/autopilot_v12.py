@@ -10,14 +10,14 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-import yaml
+from bb2_sim.yaml_files import load as load_yaml
 
 DATA = Path(__file__).resolve().parent / "data" / "autopilot_v12.yaml"
 
 
 @lru_cache(maxsize=1)
 def autopilot_v12_gains() -> dict:
-    return yaml.safe_load(DATA.read_text())
+    return load_yaml(DATA.read_text())
 
 
 @dataclass

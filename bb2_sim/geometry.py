@@ -38,6 +38,7 @@ import trimesh
 import yaml
 
 from bb2_sim.frames import rotation_native
+from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["HullMeshError", "HullSurfaces", "generate_bb2_surfaces", "load_surface_dir", "load_hull",
            "PLANE_GROUPS"]
@@ -246,7 +247,7 @@ def _manifest(directory: Path) -> tuple[dict[str, list[str]], str]:
     mpath = directory / MANIFEST
     if mpath.is_file():
         try:
-            m = yaml.safe_load(mpath.read_text())
+            m = load_yaml(mpath.read_text())
         except yaml.YAMLError as exc:
             raise HullMeshError(f"{MANIFEST}: invalid YAML ({exc})") from exc
         if not isinstance(m, dict):

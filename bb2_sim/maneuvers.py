@@ -16,12 +16,12 @@ from pathlib import Path
 from typing import Any, Callable, Iterable
 
 import numpy as np
-import yaml
 
 from .autopilot_v12 import V12Autopilot, autopilot_v12_gains
 from .integrator import NonFiniteStateError, Simulator, StepRecord, check_substeps
 from .model import BB2Model
 from .xplane import plane_angles_deg
+from .yaml_files import load as load_yaml
 
 DATA = Path(__file__).resolve().parent / "data" / "maneuvers.yaml"
 RAD2DEG = 180.0 / math.pi
@@ -51,7 +51,7 @@ class ManeuverError(ValueError):
 
 @lru_cache(maxsize=1)
 def _catalogue() -> dict:
-    return yaml.safe_load(DATA.read_text())["maneuvers"]
+    return load_yaml(DATA.read_text())["maneuvers"]
 
 
 def maneuver_names() -> list[str]:

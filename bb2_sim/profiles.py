@@ -10,7 +10,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Mapping
 
-import yaml
+from bb2_sim.yaml_files import load as load_yaml
 
 DATA = Path(__file__).resolve().parent / "data" / "profiles.yaml"
 
@@ -41,7 +41,7 @@ class Profile:
 
 @lru_cache(maxsize=1)
 def _data() -> dict:
-    return yaml.safe_load(DATA.read_text())
+    return load_yaml(DATA.read_text())
 
 
 def switch_docs() -> dict[str, str]:

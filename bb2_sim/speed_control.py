@@ -9,14 +9,14 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-import yaml
+from bb2_sim.yaml_files import load as load_yaml
 
 DATA = Path(__file__).resolve().parent / "data" / "speed_pi.yaml"
 
 
 @lru_cache(maxsize=1)
 def speed_pi_gains() -> dict:
-    return yaml.safe_load(DATA.read_text())
+    return load_yaml(DATA.read_text())
 
 
 @dataclass

@@ -20,9 +20,9 @@ DATA = Path(__file__).resolve().parent / "data" / "substeps_stability.yaml"
 
 @lru_cache(maxsize=1)
 def _data() -> dict[str, Any]:
-    import yaml
+    from bb2_sim.yaml_files import load as load_yaml
 
-    return yaml.safe_load(DATA.read_text())
+    return load_yaml(DATA.read_text())
 
 
 def cruise_limits() -> dict[int, tuple[float, float]]:

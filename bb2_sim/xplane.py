@@ -13,7 +13,8 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-import yaml
+
+from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["mixing_matrix", "plane_angles_deg", "PLANE_NAMES"]
 
@@ -23,7 +24,7 @@ DATA_FILE = Path(__file__).resolve().parent / "data" / "xplane.yaml"
 @lru_cache(maxsize=1)
 def _data() -> dict:
     with open(DATA_FILE) as fh:
-        return yaml.safe_load(fh)
+        return load_yaml(fh)
 
 
 def mixing_matrix() -> np.ndarray:

@@ -44,6 +44,8 @@ from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
+from bb2_sim.yaml_files import load as load_yaml
+
 __all__ = ["BagError", "BagWriter", "BagReader", "RawMessage", "TopicInfo", "message_definition",
            "type_hash", "qos_entry", "qos_yaml", "read_metadata", "recover", "Gap", "SequenceGaps", "bag_gaps",
            "PUBLICATION_COUNTS_FILE", "read_publication_counts", "unrecorded_losses",
@@ -453,7 +455,7 @@ def read_metadata(bag_dir: str | os.PathLike) -> dict[str, Any]:
     """The ``rosbag2_bagfile_information`` of a bag directory's metadata.yaml."""
     path = Path(bag_dir) / "metadata.yaml"
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+        doc = load_yaml(path.read_text(encoding="utf-8"))
         return doc["rosbag2_bagfile_information"]
     except UnicodeDecodeError as exc:
         raise BagError(f"cannot read {path}: not valid UTF-8 text (byte {exc.start})") from None
@@ -619,7 +621,7 @@ class BagReader:
         out = []
         for cid, c in self._channels.items():
             qos_text = c.metadata.get("offered_qos_profiles", "")
-            qos = yaml.safe_load(qos_text) if qos_text else []
+            qos = load_yaml(qos_text) if qos_text else []
             out.append(TopicInfo(c.topic, self.topics[c.topic], list(qos or []),
                                  c.metadata.get("topic_type_hash", ""), self._counts.get(cid, 0),
                                  c.message_encoding, c.metadata.get(SEQUENCE_KEY) == SEQUENCE_DDS))

@@ -322,11 +322,12 @@ RECORDED_TOPICS_NOTE = "the recorder is ready when it subscribes to every non-ba
 
 def _load_yaml_mapping(path: Path, what: str) -> dict:
     import yaml
+    from bb2_sim.yaml_files import load as load_yaml
 
     if not path.is_file():
         raise LaunchError(f"{what} {path} does not exist")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = load_yaml(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         raise LaunchError(f"{what} {path} is not valid YAML: {exc}") from None
     except UnicodeDecodeError as exc:

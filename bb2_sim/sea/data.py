@@ -4,11 +4,11 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
-import yaml
+from bb2_sim.yaml_files import load as load_yaml
 
 DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 
 
 @lru_cache(maxsize=None)
 def sea_data(name: str = "sea_spectra.yaml") -> dict:
-    return yaml.safe_load((DATA_DIR / name).read_text())
+    return load_yaml((DATA_DIR / name).read_text())

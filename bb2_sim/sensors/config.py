@@ -19,6 +19,8 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
+from bb2_sim.yaml_files import load as load_yaml
+
 __all__ = ["SensorConfigError", "FORMAT", "PRESETS", "DATA_DIR", "SENSOR_NAMES", "Mounting", "GyroConfig",
            "AccelConfig", "AhrsConfig", "ImuConfig", "PressureConfig", "DvlConfig", "AltimeterConfig",
            "GpsConfig", "FaultSpec", "SuiteConfig", "load_suite_config", "suite_config_from_mapping",
@@ -435,7 +437,7 @@ def _merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
 
 def _read(file: Path) -> dict[str, Any]:
     try:
-        doc = yaml.safe_load(file.read_text(encoding="utf-8"))
+        doc = load_yaml(file.read_text(encoding="utf-8"))
     except OSError as e:
         raise SensorConfigError(f"{file}: cannot read the sensor suite ({e.strerror})") from None
     except UnicodeDecodeError as e:

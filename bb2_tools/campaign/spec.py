@@ -16,6 +16,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import yaml
 
+from bb2_sim.yaml_files import load as load_yaml
 from bb2_tools.campaign.errors import SpecError
 
 __all__ = ["SpecError", "Vary", "CampaignSpec", "load_spec", "parse_spec", "run_seed", "set_dotted",
@@ -319,7 +320,7 @@ def _read_mission_document(file: Path) -> dict[str, Any]:
     """A mission file with its ``extends`` chain merged (as :func:`bb2_mission.schema.load_mission` does)."""
     def read(f: Path) -> dict[str, Any]:
         try:
-            doc = yaml.safe_load(f.read_text())
+            doc = load_yaml(f.read_text())
         except OSError as e:
             raise SpecError(f"mission: cannot read {f} ({e.strerror})") from None
         except yaml.YAMLError as e:
@@ -444,7 +445,7 @@ def load_spec(file: str | Path) -> CampaignSpec:
     :func:`bb2_tools.campaign.worker.probe`)."""
     f = Path(file)
     try:
-        doc = yaml.safe_load(f.read_text())
+        doc = load_yaml(f.read_text())
     except OSError as e:
         raise SpecError(f"cannot read SPEC ({e.strerror})") from None
     except yaml.YAMLError as e:

@@ -18,6 +18,7 @@ from typing import Any, Iterator
 
 import yaml
 
+from bb2_sim.yaml_files import load as load_yaml
 from bb2_tools.campaign.errors import SpecError
 from bb2_tools.campaign.figures import figure_kinds, json_safe
 from bb2_tools.campaign.spec import CampaignSpec
@@ -204,8 +205,8 @@ def check_campaign_yaml(out: Path, spec: CampaignSpec) -> None:
     f = out / CAMPAIGN_YAML
     if not f.exists():
         raise SpecError(f"--resume: {out} holds no {CAMPAIGN_YAML}")
-    old = (yaml.safe_load(f.read_text()) or {}).get("campaign")
-    new = yaml.safe_load(yaml.safe_dump(spec.to_doc()))
+    old = (load_yaml(f.read_text()) or {}).get("campaign")
+    new = load_yaml(yaml.safe_dump(spec.to_doc()))
     if old != new:
         diff = sorted(k for k in set(old or {}) | set(new) if (old or {}).get(k) != new.get(k))
         raise SpecError(f"--resume: {out} holds a different campaign (differs in: {', '.join(diff)})")

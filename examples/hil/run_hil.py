@@ -139,8 +139,9 @@ def simulator_params(out: Path, **overrides: float | str) -> Path:
     """``simulator_hil.yaml`` with ``overrides`` applied, written to ``out`` (a node-specific params-file
     entry would win over ``-p``, so the options go into the file)."""
     import yaml
+    from bb2_sim.yaml_files import load as load_yaml
 
-    doc = yaml.safe_load(PARAMS.read_text())
+    doc = load_yaml(PARAMS.read_text())
     doc["simulator"]["ros__parameters"].update(
         {k: v if isinstance(v, str) else float(v) for k, v in overrides.items()})
     out.write_text(yaml.safe_dump(doc, sort_keys=False))
