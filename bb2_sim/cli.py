@@ -231,7 +231,7 @@ def _progress(enabled: bool, total: float):
 def run_maneuver_cli(a: argparse.Namespace) -> int:
     from .geometry import HullMeshError
     from .maneuvers import (CsvWriter, ManeuverError, build_model, check_initial_depth, maneuver_settings,
-                            run_maneuver)
+                            run_maneuver, saturation_warning)
     from .outputs import OutputError, check_output_file, os_error_line
     from .waves import SeaStateError
 
@@ -263,8 +263,9 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
     from .step_stability import cruise_speed, speed_warning
 
     held = s.speed_mps if s.propeller != "constant" else max(s.speed_mps, cruise_speed(s.rps_command))
-    warning = speed_warning(held, s.substeps, "--substeps", f"maneuver {s.name}")
-    if warning:
+    warnings = (speed_warning(held, s.substeps, "--substeps", f"maneuver {s.name}"),
+                saturation_warning(s, float(model.params.act["plane_limit_deg"])))
+    for warning in filter(None, warnings):
         print(f"bb2-sim: warning: {warning}", file=sys.stderr)
     print(f"  hull: {model.surfaces.source} ({model.surfaces.n_triangles()} triangles, V = {model.volume:.3f} m^3"
           f"{', weight trimmed to buoyancy' if model.trimmed else ''}); profile {model.profile.name}; "

@@ -120,6 +120,32 @@ def maneuver_settings(name: str, **overrides) -> ManeuverSettings:
     return s
 
 
+def _largest(planes_deg) -> float:
+    return float(np.max(np.abs(planes_deg)))
+
+
+def saturation_warning(s: ManeuverSettings, plane_limit_deg: float) -> str:
+    """Before a run: '' or one line saying that the maneuver's own plane command (its rudder, its zigzag amplitude,
+    its imposed planes) deflects a plane beyond ``plane_limit_deg``, where the actuators stop it, as the authors'
+    model does: the run is then that of the limit, not of the command asked for.  (The autopilot's own share of
+    the planes, e.g. the depth PID's in a turning circle, comes on top and is not foreseen here.)"""
+    asked: list[tuple[str, float]] = []  # (the setting as given, the largest plane deflection it asks for)
+    if s.horizontal == "rudder":
+        asked.append((f"its rudder of {s.rudder_deg:g} deg", _largest(plane_angles_deg(0.0, s.rudder_deg))))
+    if "zigzag" in (s.horizontal, s.vertical):
+        dv, dh = (s.amplitude_deg, 0.0) if s.vertical == "zigzag" else (0.0, s.amplitude_deg)
+        asked.append((f"its zigzag amplitude of {s.amplitude_deg:g} deg", _largest(plane_angles_deg(dv, dh))))
+    if s.vertical == "imposed" and s.horizontal == "imposed":
+        asked.append((f"its imposed planes {','.join(f'{d:g}' for d in s.planes_deg)} deg",
+                      _largest(s.planes_deg)))
+    over = [(what, deg) for what, deg in asked if deg > plane_limit_deg + 1e-9]
+    if not over:
+        return ""
+    what, deg = over[0]
+    return (f"maneuver {s.name}: the planes are asked for up to {deg:g} deg ({what}), beyond their limit of "
+            f"{plane_limit_deg:g} deg, where they stop: the run is that of the limit, not of the command")
+
+
 def validate(s: ManeuverSettings) -> None:
     """Raise :class:`ManeuverError` with one clear message for any bad setting."""
     numeric = {"depth": s.depth, "speed_mps": s.speed_mps, "duration": s.duration,

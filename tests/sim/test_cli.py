@@ -54,6 +54,34 @@ def test_bad_input_one_clear_error_exit_2(args, needle):
     assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) <= 3
 
 
+@pytest.mark.parametrize("args, asked", [
+    (["turning-circle", "--rudder-deg", "35"], "35 deg (its rudder of 35 deg)"),
+    (["turning-circle", "--rudder-deg", "-95"], "95 deg (its rudder of -95 deg)"),
+    (["hzz", "--amplitude-deg", "40"], "40 deg (its zigzag amplitude of 40 deg)"),
+    (["vzz", "--amplitude-deg", "31"], "31 deg (its zigzag amplitude of 31 deg)"),
+    (["open-loop", "--planes-deg", "0,0,0,0,40"], "40 deg (its imposed planes 0,0,0,0,40 deg)"),
+    (["turning-circle", "--rudder-deg", "30"], None),  # at the limit: nothing to say
+    (["hzz", "--amplitude-deg", "20"], None),
+    (["open-loop", "--planes-deg", "10,10,-10,-10,0"], None),
+])
+def test_a_plane_command_beyond_the_planes_limit_is_warned_and_flown_at_the_limit(args, asked, tmp_path):
+    """The planes stop at their 30 deg limit (the authors' saturation); a maneuver asking more of them is flown
+    (exit 0) and says, before the run, that it is the limit's run, not the command's."""
+    out = tmp_path / "m.csv"
+    p = run("maneuver", *args, "--duration", "6", "--out", str(out))
+    assert p.returncode == 0, p.stderr
+    said = [ln for ln in p.stderr.splitlines() if "beyond their limit" in ln]
+    if asked is None:
+        assert not said, p.stderr
+        return
+    assert said == [f"bb2-sim: warning: maneuver {args[0]}: the planes are asked for up to {asked}, beyond their "
+                    f"limit of 30 deg, where they stop: the run is that of the limit, not of the command"], p.stderr
+    rows = list(csv.DictReader(out.open()))
+    commanded = max(abs(float(r[f"cmd_dX{i}_deg"])) for r in rows for i in range(1, 6))
+    applied = max(abs(float(r[f"dX{i}_deg"])) for r in rows for i in range(1, 6))
+    assert commanded > 30.0 and applied == 30.0  # asked beyond the limit, stopped at it
+
+
 def test_unreadable_mesh_exit_2(tmp_path):
     (tmp_path / "Hull.stl").write_text("solid junk\n this is not an stl\nendsolid\n")
     p = run("maneuver", "hzz", "--hull-mesh", str(tmp_path), "--duration", "1")
