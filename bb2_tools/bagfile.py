@@ -553,6 +553,10 @@ class BagReader:
         from mcap.reader import make_reader
 
         with open(self.mcap_path, "rb") as f:
+            head = f.read(len(MCAP_MAGIC))
+            if head != MCAP_MAGIC[:len(head)] or not head:  # (a recorder killed at once may leave part of it)
+                raise BagError(f"{self.mcap_path}: " + ("an empty file (0 bytes): nothing was recorded" if not head
+                               else "not an MCAP file (it does not begin with the MCAP magic bytes)"))
             f.seek(0, os.SEEK_END)
             size = f.tell()
             if size >= 8:

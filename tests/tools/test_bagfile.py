@@ -203,6 +203,28 @@ def test_truncated_file_is_read_up_to_the_last_complete_chunk(sample_bag, tmp_pa
     assert len(odom) == r.message_counts["/bb2/odom"]
 
 
+@pytest.mark.parametrize("content, said", [
+    (b"", "an empty file (0 bytes): nothing was recorded"),
+    (b"garbage, not a recording\n", "not an MCAP file (it does not begin with the MCAP magic bytes)"),
+    (b"PK\x03\x04" + bytes(200), "not an MCAP file (it does not begin with the MCAP magic bytes)"),
+])
+def test_a_file_that_is_no_mcap_is_said_so_not_called_truncated(tmp_path, content, said):
+    """(Before 2026-12-07 a text file was read as a truncated bag: "file ends inside a record (InvalidMagic ...)",
+    and bb2-replay said it would play it up to its last complete chunk.)"""
+    f = tmp_path / "run_0.mcap"
+    f.write_bytes(content)
+    with pytest.raises(BagError) as e:
+        BagReader(tmp_path)
+    assert str(e.value) == f"{f}: {said}"
+
+
+def test_a_bag_cut_inside_its_magic_is_truncated_and_empty(sample_bag, tmp_path):
+    f = tmp_path / "run_0.mcap"
+    f.write_bytes((sample_bag / "run1_0.mcap").read_bytes()[:5])  # a recorder killed while opening its file
+    r = BagReader(f)
+    assert r.truncated and r.problem and not r.topics
+
+
 def test_recover_rewrites_a_valid_bag(sample_bag, tmp_path):
     cut = _truncated_copy(sample_bag, tmp_path / "killed" / "run1", 0.5)
     before = BagReader(cut)
