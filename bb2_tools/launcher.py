@@ -257,7 +257,10 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 for n in sorted(set(frozen) - stopped):
                     say(f"[bb2-launch] node '{n}' runs again after {now - frozen.pop(n):.1f} s stopped")
             if sup.failure:
-                reason, code = f"node '{sup.failure.name}' failed ({sup.failure.cause})", 1
+                # a node that exits 2 before the first step refused its input (a parameter, its mission) or its
+                # environment (a blocked domain): the launch's bad input, exit 2 as the launcher's own checks
+                refused = sup.failure.returncode == 2 and (monitor is None or not monitor.stepping_started)
+                reason, code = f"node '{sup.failure.name}' failed ({sup.failure.cause})", 2 if refused else 1
             elif sup.finished:
                 reason = f"node '{sup.finished.name}' finished (exit code 0)"
             elif monitor is not None and monitor.sim_error:

@@ -480,6 +480,34 @@ def test_killed_node_is_reported_and_graph_stops_nonzero_without_hanging(graph):
 
 
 @pytest.mark.ros
+@pytest.mark.parametrize("stepping", [False, True])
+def test_a_node_exiting_2_before_the_first_step_is_bad_input_after_it_a_failure(graph, stepping):
+    """A node that exits 2 (it refused a parameter, its mission or its ROS domain) before the sim time moved makes
+    the launch exit 2, as the launcher's own input checks do; once the graph steps, a node's exit is a failure
+    (exit 1), whatever its code."""
+    a = graph.node("a", "--clock") if stepping else graph.node("a")
+    p = graph.run([a, graph.node("b", "--crash-after", "3.0" if stepping else "0.3", "--exit-code", "2")])
+    out, err = p.communicate(timeout=60)
+    res = _result(out)
+    assert res["reason"] == "node 'b' failed (exit code 2)", err
+    assert p.returncode == res["code"] == (1 if stepping else 2), err
+    assert (res["sim_time"] is not None and res["sim_time"] > 0) == stepping, res
+
+
+@pytest.mark.ros
+def test_bb2_launch_with_a_parameter_a_node_refuses_exits_2_with_the_nodes_line(tmp_path, bb2_graph_available):
+    params = tmp_path / "params.yaml"
+    params.write_text("/**:\n  ros__parameters:\n    rate_hz: fast\n")
+    p = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(_short_mission(tmp_path, 20.0)),
+                        "--params", str(params), "--out", str(tmp_path / "run"), "--timeout", "100"],
+                       cwd=tmp_path, env=ros_env(), capture_output=True, text=True, timeout=160)
+    assert p.returncode == 2, p.stderr
+    assert "simulator: error: parameter 'rate_hz'" in p.stderr.split("node 'simulator' ended (exit code 2)")[1]
+    assert re.search(r"node 'simulator' failed \(exit code 2\): sim time --, .*exit code 2$", p.stderr, re.M), \
+        p.stderr
+
+
+@pytest.mark.ros
 @pytest.mark.parametrize("clock", ["stops", "never", "handshake"])
 def test_a_graph_whose_sim_time_stops_or_never_starts_is_stopped_as_stalled(graph, clock):
     """Issue 10, point 3: never left at 0x, whether the sim time stands still mid-run or never starts at all
