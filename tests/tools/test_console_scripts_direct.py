@@ -82,3 +82,19 @@ def test_a_venv_without_ros_says_what_to_set_in_one_line(tmp_path):
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("bb2-launch: error: no ROS 2 environment"), r.stderr
+
+
+def test_every_command_the_docs_name_is_installed_and_answers_help():
+    """Each ``bb2-*`` command the README, the missions' README or the architecture names is a console script of
+    the venv that answers ``--help`` with no ROS variable set (``bb2-record`` was named, not installed, until
+    2026-12-07: ``python -m bb2_tools.recorder`` was the only way)."""
+    import re
+
+    docs = "".join((REPO / f).read_text() for f in ("README.md", "missions/README.md", "docs/ARCHITECTURE.md"))
+    named = set(re.findall(r"`(bb2-[a-z]+)\b", docs))
+    assert {"bb2-sim", "bb2-launch", "bb2-record", "bb2-analyze", "bb2-replay", "bb2-campaign"} <= named
+    for cmd in sorted(named):
+        exe = VENV_BIN / cmd
+        assert exe.is_file(), f"{cmd} is named in the docs but not installed (pyproject [project.scripts])"
+        r = subprocess.run([str(exe), "--help"], env=bare_env(), capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0 and r.stdout.startswith(f"usage: {cmd}"), (cmd, r.stdout[:300], r.stderr[-500:])
