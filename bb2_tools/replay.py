@@ -234,6 +234,10 @@ class Player:
         if first is None:
             raise ReplayError(f"bag {reader.mcap_path} holds no message")
         self.start_ns = first + int(round(start_offset_s * 1e9))
+        end = reader.end_time_ns()
+        if self.start_ns > end:
+            raise ReplayError(f"--start-offset {start_offset_s:g} s is past the bag's end: it spans "
+                              f"{(end - first) * 1e-9:.3f} s from its first message")
         self.clock = PlaybackClock(self.start_ns, rate, paused=paused)
         self.stats = PlayStats()
         self.node = Node(NODE_NAME, context=context)
@@ -509,6 +513,9 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
     if 0 in ref and not np.array_equal(ref[0], sim.x):
         notes.append("the recorded initial state differs from the mission's initial state: wrong mission?")
     compare_from = first_ref + int(round(start_offset_s * 1e9))
+    if compare_from > last_ref:  # nothing would be compared: no "deviation 0" for a run never looked at
+        raise ReplayError(f"--start-offset {start_offset_s:g} s is past the last recorded state: the states span "
+                          f"{(last_ref - first_ref) * 1e-9:.3f} s")
     plane_stamps, prop_stamps = sorted(planes), sorted(props)
 
     def held(stamps: list[int], table: dict, t_ns: int):

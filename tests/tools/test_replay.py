@@ -120,6 +120,11 @@ def test_bad_input_is_one_clear_error(recorded, tmp_path, capsys):
     assert main([str(bag), "--rate", "0"]) == 2
     assert main([str(bag), "--topics", "/bb2/nothing"]) == 2
     assert "matches no topic" in capsys.readouterr().err
+    # a start past the end: said, not "published 0 messages" (nor open loop's "max deviation 0" over no state)
+    assert main([str(bag), "--start-offset", "1e9"]) == 2
+    assert f"--start-offset 1e+09 s is past the bag's end: it spans {DURATION_S:.3f} s" in capsys.readouterr().err
+    assert main([str(bag), "--open-loop", "--start-offset", "1e9"]) == 2
+    assert "--start-offset 1e+09 s is past the last recorded state" in capsys.readouterr().err
 
 
 # ----------------------------------------------------------------------------------------- open loop
