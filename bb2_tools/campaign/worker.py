@@ -16,7 +16,7 @@ from bb2_tools.campaign.figures import END_STATUS, maneuver_values, mission_valu
 from bb2_tools.campaign.spec import CampaignSpec, column_value
 
 __all__ = ["STATUSES", "run_task", "run_tasks", "run_one", "probe", "build_mission", "maneuver_settings_of",
-           "BATCH_MIN", "batched"]
+           "BATCH_MIN", "batched", "saturation_warnings"]
 
 STATUSES = ("ok", "grounded", "broached", "diverged", "error")
 _MAX_MESSAGE = 2000
@@ -360,3 +360,37 @@ def probe(spec: CampaignSpec, max_values: int = 12) -> None:
                 d2 = spec.document(0)
                 set_dotted(d2, v.key, copy.deepcopy(val))
                 _check(spec, d2, f"vary.{v.key} = {val!r}")
+
+
+def saturation_warnings(spec: CampaignSpec) -> list[str]:
+    """A maneuver campaign's plane commands beyond the planes' limit (``bb2_sim.maneuvers.saturation_warning``):
+    one line for the base options, or per varied key at its extreme values (a uniform's bounds, a normal's clip,
+    every choice / grid value), on run 0's other inputs.  Such runs fly at the limit, as ``bb2-sim maneuver``
+    warns; a sweep past it gives flat figures, not an error.  ``[]`` for mission campaigns."""
+    import copy
+
+    from bb2_sim.maneuvers import saturation_warning
+    from bb2_sim.parameters import load_parameters
+    from bb2_tools.campaign.spec import set_dotted
+
+    if spec.target != "maneuver":
+        return []
+    limit = float(load_parameters().act["plane_limit_deg"])
+    said = saturation_warning(maneuver_settings_of(spec, copy.deepcopy(spec.base)), limit)
+    if said:
+        return [f"maneuver.options: {said}"]
+    out = []
+    for v in spec.vary:
+        extremes = (v.params if v.kind in ("uniform", "choice", "grid", "value") else v.clip or ())
+        for val in extremes:
+            doc = spec.document(0)
+            try:
+                set_dotted(doc, v.key, copy.deepcopy(val))
+                said = saturation_warning(maneuver_settings_of(spec, doc), limit)
+            except Exception:  # noqa: BLE001 -- a value the probe let through but that does not build: no warning
+                continue
+            if said:
+                out.append(f"vary.{v.key} = {val!r}: {said}")
+                break
+    return out
+

@@ -296,6 +296,29 @@ def test_a_malformed_spec_exits_2_with_one_line_naming_the_field(doc, field, tmp
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("doc, said", [
+    ({"maneuver": {"name": "turning-circle", "options": {"rudder_deg": 35}}},
+     "maneuver.options: maneuver turning-circle: the planes are asked for up to 35 deg (its rudder of 35 deg)"),
+    ({"maneuver": {"name": "turning-circle"}, "vary": {"rudder_deg": {"uniform": [10, 40]}}},
+     "vary.rudder_deg = 40.0: maneuver turning-circle: the planes are asked for up to 40 deg"),
+    ({"maneuver": {"name": "hzz"}, "vary": {"amplitude_deg": [10, 45, 20]}},
+     "vary.amplitude_deg = 45: maneuver hzz: the planes are asked for up to 45 deg (its zigzag amplitude of 45"),
+    ({"maneuver": {"name": "turning-circle"}, "vary": {"rudder_deg": {"normal": [20, 10], "clip": [5, 30]}}}, None),
+    ({"maneuver": {"name": "hzz"}, "vary": {"amplitude_deg": [10, 30]}}, None),
+    ({"mission": "circle", "vary": {"duration_s": [10, 20]}}, None),
+])
+def test_plane_commands_beyond_the_planes_limit_are_warned_before_the_campaign(doc, said):
+    """Runs past the 30 deg limit fly at the limit (as bb2-sim maneuver warns): a sweep past it would give flat
+    figures without a word, so the campaign says so once per key, at its extreme values."""
+    from bb2_tools.campaign.worker import saturation_warnings
+
+    got = saturation_warnings(parse_spec({"seed": 1, "samples": 2, **doc}))
+    if said is None:
+        assert got == []
+    else:
+        assert len(got) == 1 and got[0].startswith(said), got
+
+
 def test_bad_command_lines_exit_2(tmp_path):
     f = _write_spec(tmp_path / "s.yaml", {"mission": "circle"})
     r = _campaign(str(f), "--workers", "0")
