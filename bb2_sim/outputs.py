@@ -207,8 +207,8 @@ def run_cli(prog: str, body: Callable[[], int], *, path_hint: str | os.PathLike 
     except (OSError, UnicodeError) as exc:
         print(f"{prog}: error: {os_error_line(exc, path_hint)}", file=sys.stderr, flush=True)
         return EXIT_INPUT
-    except MemoryError:
-        print(f"{prog}: error: out of memory", file=sys.stderr, flush=True)
+    except MemoryError as exc:  # (check_fits_in_memory says what and how much; Python's own has no message)
+        print(f"{prog}: error: {exc or 'out of memory'}", file=sys.stderr, flush=True)
         return EXIT_INPUT
     finally:
         try:

@@ -208,6 +208,9 @@ def test_sea_command_reads_a_component_file(tmp_path):
     (["--components", "/no/such/components.csv"], "not found"),
     (["--spectrum", "jonswap", "--hs", "3", "--tp", "9", "--dt", "0"], "dt must be > 0"),
     (["--spectrum", "jonswap", "--hs", "3", "--tp", "9", "--at", "1"], "X,Y"),
+    # said up front with the size (was "out of memory", after the allocation failed)
+    (["--spectrum", "regular", "--hs", "3", "--tp", "9", "--dt", "1e-9"],
+     "a record of 10000000001 samples (10 s every 1e-09 s) would need about 447.0 GiB in memory"),
 ])
 def test_sea_command_bad_input_exit_2(args, needle, tmp_path):
     p = run("sea", *args, "--duration", "10", "--out", str(tmp_path / "x.csv"))
