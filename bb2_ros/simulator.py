@@ -330,8 +330,8 @@ class Simulator(Node):
                         command_timeout_s=self.command_timeout_s),
             nominal_rps=rps)
         too_fast = build_piece(self.mission, lambda m: substeps_warning(m, rps))  # faster than its sub-steps fly
-        if too_fast:
-            self.get_logger().warning(too_fast)
+        for warning in filter(None, (too_fast, self.mission.environment.sea.steepness_warning())):
+            self.get_logger().warning(warning)
         self._failsafe_shown = False  # the failsafe state last logged / published
         self._takeover_t: float | None = None  # sim time of the first step on valid commands
         if ack_window and self.time_mode is not TimeMode.LOCKSTEP:

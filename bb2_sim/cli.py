@@ -264,7 +264,8 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
 
     held = s.speed_mps if s.propeller != "constant" else max(s.speed_mps, cruise_speed(s.rps_command))
     warnings = (speed_warning(held, s.substeps, "--substeps", f"maneuver {s.name}"),
-                saturation_warning(s, float(model.params.act["plane_limit_deg"])))
+                saturation_warning(s, float(model.params.act["plane_limit_deg"])),
+                s.environment.sea.steepness_warning(model.params.g) if s.environment is not None else "")
     for warning in filter(None, warnings):
         print(f"bb2-sim: warning: {warning}", file=sys.stderr)
     print(f"  hull: {model.surfaces.source} ({model.surfaces.n_triangles()} triangles, V = {model.volume:.3f} m^3"
@@ -377,6 +378,8 @@ def run_sea_cli(a: argparse.Namespace) -> int:
     except (SeaStateError, ValueError) as e:
         print(f"bb2-sim: error: {e}", file=sys.stderr)
         return 2
+    if steep := env.sea.steepness_warning(params.g):
+        print(f"bb2-sim: warning: {steep}", file=sys.stderr)
     n = int(math.floor(a.duration / a.dt + 1e-9)) + 1
     from .outputs import check_fits_in_memory
 

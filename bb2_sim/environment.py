@@ -168,6 +168,32 @@ class SeaSpec:
             out[k] = v
         return out
 
+    def steepness_warning(self, g: float = 9.81) -> str:
+        """Before a run: '' or one line when this sea is steeper than any deep-water wave can be (a regular wave's
+        H / L, a spectrum's Hs / Lp, with L = g T^2 / 2 pi, beyond the breaking limit of ``data/sea_spectra.yaml``):
+        a typo (Hs 30 m, Tp 0.9 s) more often than a sea.  The linear model flies it all the same.  Not checked:
+        the authors' table, given components, a Pierson-Moskowitz sea (its Tp follows from Hs)."""
+        from .sea.data import sea_data
+
+        if self.authors_table or not isinstance(self.components, int) or self.spectrum in (None, "pm"):
+            return ""
+        hs, tp = self.effective_hs_tp
+        if self.spectrum == "regular":
+            h = 2.0 * self.amplitude_m if self.amplitude_m is not None else hs
+            period, what = (self.period_s if self.period_s is not None else tp), "H / L"
+        else:
+            h, period, what = hs, tp, "Hs / Lp"
+        if not h or not period:
+            return ""
+        limit = float(sea_data()["limits"]["breaking_steepness"]["value"])
+        length = g * period ** 2 / (2.0 * math.pi)
+        steep = h / length
+        if steep <= limit:
+            return ""
+        return (f"the sea ({self.summary()}) has {what} = {h:g} / {length:.3g} m = {steep:.3f}, steeper than any "
+                f"deep-water wave ({limit:g}: beyond it waves break): no such sea exists; the linear model flies it "
+                f"all the same")
+
     def summary(self) -> str:
         """One line for a printout."""
         if self.authors_table:

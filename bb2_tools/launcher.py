@@ -344,7 +344,8 @@ def _load_yaml_mapping(path: Path, what: str) -> dict:
 
 def check_mission(path: Path) -> str:
     """Validate the mission file with ``bb2_mission.load_mission`` (when available); returns '' or a warning to say
-    before the flight (a mission faster than its ROM sub-steps fly: ``bb2_mission.substeps_warning``)."""
+    before the flight (a mission faster than its ROM sub-steps fly: ``bb2_mission.substeps_warning``; a sea steeper
+    than any deep-water wave: ``SeaSpec.steepness_warning``)."""
     _load_yaml_mapping(path, "mission file")
     try:
         from bb2_mission import load_mission
@@ -359,7 +360,7 @@ def check_mission(path: Path) -> str:
         msg = str(exc)
         raise LaunchError(msg if str(path) in msg else f"mission {path}: {msg}") from None
     try:
-        return substeps_warning(m)
+        return "; ".join(filter(None, (substeps_warning(m), m.environment.sea.steepness_warning())))
     except Exception:  # noqa: BLE001 -- a warning never stops a launch (the simulator node builds the same)
         return ""
 

@@ -68,8 +68,7 @@ def run_mission_cli(a: argparse.Namespace) -> int:
         print(f"  sea: {m.environment.summary()}")
     from bb2_mission import substeps_warning
 
-    warning = substeps_warning(m)
-    if warning:
+    for warning in filter(None, (substeps_warning(m), m.environment.sea.steepness_warning())):
         print(f"bb2-sim: warning: {warning}", file=sys.stderr)
 
     def progress(t: float) -> None:

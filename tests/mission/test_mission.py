@@ -304,6 +304,19 @@ def test_a_fast_mission_diverging_at_the_authors_step_is_told_of_substeps_which_
     assert "diverged" not in err and "warning" not in err and "mission time 30.00 s" in out, (out, err)
 
 
+def test_a_mission_in_a_sea_steeper_than_any_wave_is_warned_before_the_flight_and_flown(tmp_path, capsys):
+    from bb2_tools.mission_cli import run_mission_cli
+
+    f = tmp_path / "steep.yaml"
+    f.write_text(f"extends: {MISSIONS_DIR / 'straight.yaml'}\nname: steep\nduration_s: 2.0\n"
+                 "sea: {spectrum: regular, amplitude_m: 3, period_s: 3}\n")
+    assert run_mission_cli(argparse.Namespace(file=str(f), out=None, no_adaptation=False, quiet=True)) == 0
+    err = capsys.readouterr().err
+    assert err.splitlines() == ["bb2-sim: warning: the sea (regular wave A 3 m, T 3 s, heading 0 deg) has H / L = "
+                                "6 / 14.1 m = 0.427, steeper than any deep-water wave (0.142: beyond it waves break): "
+                                "no such sea exists; the linear model flies it all the same"], err
+
+
 def test_the_substeps_warning_uses_the_propeller_command_it_is_given():
     """``substeps_warning(m, rps)``: the node passes the nominal command it has already computed; given that value
     the warning is the one computed from the mission alone, and a faster command is warned from its own cruise."""

@@ -218,6 +218,17 @@ def test_sea_command_bad_input_exit_2(args, needle, tmp_path):
     assert needle in p.stderr and "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
 
 
+def test_sea_command_warns_of_a_sea_steeper_than_any_wave_and_writes_it(tmp_path):
+    p = run("sea", "--spectrum", "jonswap", "--hs", "30", "--tp", "9", "--duration", "10", "--out",
+            str(tmp_path / "x.csv"))
+    assert p.returncode == 0 and (tmp_path / "x.csv").is_file(), p.stderr
+    said = [ln for ln in p.stderr.splitlines() if ln.startswith("bb2-sim: warning: ")]
+    assert len(said) == 1 and "Hs / Lp = 30 / 126 m = 0.237, steeper than any deep-water wave" in said[0], p.stderr
+    p = run("sea", "--spectrum", "jonswap", "--hs", "3.25", "--tp", "9.7", "--duration", "10", "--out",
+            str(tmp_path / "y.csv"))
+    assert p.returncode == 0 and "warning" not in p.stderr, p.stderr
+
+
 def test_sea_command_unreadable_component_file_exit_2(tmp_path):
     f = tmp_path / "bad.csv"
     f.write_text("amplitude_m,omega_rad_s\n1,2\n")

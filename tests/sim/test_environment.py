@@ -134,3 +134,24 @@ def test_description_rebuilds_the_same_sea_exactly(sea):
 
 def test_spec_is_hashable_data():
     assert SeaSpec() == sea_from_mapping({})
+
+
+@pytest.mark.parametrize("block, said", [
+    ({"spectrum": "jonswap", "hs": 30, "tp": 9}, "has Hs / Lp = 30 / 126 m = 0.237, steeper than any deep-water"),
+    ({"spectrum": "ittc", "hs": 3, "tp": 1.0}, "has Hs / Lp = 3 / 1.56 m = 1.921"),
+    ({"spectrum": "regular", "amplitude_m": 3, "period_s": 3}, "has H / L = 6 / 14.1 m = 0.427"),
+    ({"spectrum": "regular", "hs": 6, "tp": 3}, "has H / L = 6 / 14.1 m = 0.427"),
+    ({"spectrum": "jonswap", "hs": 3.25, "tp": 9.7}, None),           # sea state 5 of the table
+    ({"spectrum": "jonswap", "hs": 9.3, "tp": 6.5}, None),            # Hs / Lp 0.141: at the limit, not past it
+    ({"spectrum": "pm", "hs": 15}, None),                              # PM: Tp follows from Hs
+    ({"sea_state": 7}, None),                                           # the authors' table
+    *[({"spectrum": sp, "sea_state": ss}, None) for ss in (5, 6, 7) for sp in ("jonswap", "ittc", "regular")],
+])
+def test_a_sea_steeper_than_any_deep_water_wave_is_warned(block, said):
+    """Michell's limit (H / L = 0.142, data/sea_spectra.yaml): beyond it a sea does not exist (a typo, most
+    likely); the warning says the numbers, and every sea of the table stays below it."""
+    got = sea_from_mapping(block).steepness_warning()
+    if said is None:
+        assert got == ""
+    else:
+        assert said in got and got.endswith("the linear model flies it all the same"), got

@@ -279,6 +279,14 @@ def test_bad_input_exits_2_with_one_clear_message(tmp_path, capsys):
     assert str(good) in capsys.readouterr().err
 
 
+def test_check_mission_warns_of_a_sea_steeper_than_any_wave(tmp_path):
+    m = tmp_path / "steep.yaml"
+    m.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nsea: {{spectrum: jonswap, hs: 30, tp: 9}}\n")
+    assert "Hs / Lp = 30 / 126 m = 0.237, steeper than any deep-water wave" in L.check_mission(m)
+    m.write_text(f"extends: {REPO / 'missions' / 'straight.yaml'}\nsea: {{spectrum: jonswap, hs: 3, tp: 9}}\n")
+    assert L.check_mission(m) == ""
+
+
 def test_format_status_and_exit_causes():
     line = M.format_status(12.5, 0.25, 31.0, 5, 6, 3.0)
     assert "12.50 s" in line and "25.0 %" in line and "31.0x" in line and "5/6" in line
