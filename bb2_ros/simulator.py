@@ -1043,10 +1043,10 @@ def load_sea_file(path: str, mission_env):
     from pathlib import Path
 
     import yaml
-    from bb2_sim.yaml_files import load as load_yaml
 
     from bb2_sim.environment import (DESCRIPTION_FORMAT, Environment, current_from_mapping,
                                      environment_from_description, sea_from_mapping)
+    from bb2_sim.yaml_files import load as load_yaml
 
     f = Path(path)
     try:

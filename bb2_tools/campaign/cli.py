@@ -72,12 +72,12 @@ def main(argv: list[str] | None = None) -> int:
     if a.graph and a.only is not None:
         return _fail("--graph goes with a campaign, not --only (fly one run through the graph with bb2-launch)")
     from bb2_tools.campaign.spec import load_spec
-    from bb2_tools.campaign.worker import probe, saturation_warnings
+    from bb2_tools.campaign.worker import campaign_warnings, probe
 
     try:
         spec = load_spec(a.spec)
         probe(spec)
-        for said in saturation_warnings(spec):
+        for said in campaign_warnings(spec):
             print(f"bb2-campaign: warning: {a.spec}: {said}", file=sys.stderr)
         if a.only is not None and a.only >= spec.n_runs:
             raise SpecError(f"--only {a.only}: the campaign has runs 0..{spec.n_runs - 1}")

@@ -16,7 +16,7 @@ from bb2_tools.campaign.figures import END_STATUS, maneuver_values, mission_valu
 from bb2_tools.campaign.spec import CampaignSpec, column_value
 
 __all__ = ["STATUSES", "run_task", "run_tasks", "run_one", "probe", "build_mission", "maneuver_settings_of",
-           "BATCH_MIN", "batched", "saturation_warnings"]
+           "BATCH_MIN", "batched", "campaign_warnings"]
 
 STATUSES = ("ok", "grounded", "broached", "diverged", "error")
 _MAX_MESSAGE = 2000
@@ -362,35 +362,46 @@ def probe(spec: CampaignSpec, max_values: int = 12) -> None:
                 _check(spec, d2, f"vary.{v.key} = {val!r}")
 
 
-def saturation_warnings(spec: CampaignSpec) -> list[str]:
-    """A maneuver campaign's plane commands beyond the planes' limit (``bb2_sim.maneuvers.saturation_warning``):
-    one line for the base options, or per varied key at its extreme values (a uniform's bounds, a normal's clip,
-    every choice / grid value), on run 0's other inputs.  Such runs fly at the limit, as ``bb2-sim maneuver``
-    warns; a sweep past it gives flat figures, not an error.  ``[]`` for mission campaigns."""
+def campaign_warnings(spec: CampaignSpec, max_values: int = 12) -> list[str]:
+    """What some runs will fly that is not what was asked, said before the campaign: a maneuver's plane commands
+    beyond the planes' limit (``bb2_sim.maneuvers.saturation_warning``: those runs fly at the limit, and a sweep
+    past it gives flat figures) and a sea steeper than any deep-water wave
+    (``bb2_sim.environment.SeaSpec.steepness_warning``).  One line for the base document, else one per varied key
+    at its extreme values (a uniform's bounds, a normal's clip, every choice / grid value, at most ``max_values``)
+    on run 0's other inputs.  Warnings, not errors: such runs fly."""
     import copy
 
     from bb2_sim.maneuvers import saturation_warning
     from bb2_sim.parameters import load_parameters
     from bb2_tools.campaign.spec import set_dotted
 
-    if spec.target != "maneuver":
-        return []
     limit = float(load_parameters().act["plane_limit_deg"])
-    said = saturation_warning(maneuver_settings_of(spec, copy.deepcopy(spec.base)), limit)
+
+    def said_of(doc: dict[str, Any]) -> str:
+        if spec.target == "maneuver":
+            s = maneuver_settings_of(spec, doc)
+            env = s.environment
+            parts = [saturation_warning(s, limit)]
+        else:
+            env = build_mission(spec, doc).environment
+            parts = []
+        parts.append(env.sea.steepness_warning() if env is not None else "")
+        return "; ".join(filter(None, parts))
+
+    said = said_of(copy.deepcopy(spec.base))
     if said:
-        return [f"maneuver.options: {said}"]
+        return [f"{'maneuver.options' if spec.target == 'maneuver' else 'mission'}: {said}"]
     out = []
     for v in spec.vary:
-        extremes = (v.params if v.kind in ("uniform", "choice", "grid", "value") else v.clip or ())
-        for val in extremes:
+        extremes = v.params if v.kind in ("uniform", "choice", "grid", "value") else (v.clip or ())
+        for val in extremes[:max_values]:
             doc = spec.document(0)
             try:
                 set_dotted(doc, v.key, copy.deepcopy(val))
-                said = saturation_warning(maneuver_settings_of(spec, doc), limit)
+                said = said_of(doc)
             except Exception:  # noqa: BLE001 -- a value the probe let through but that does not build: no warning
                 continue
             if said:
                 out.append(f"vary.{v.key} = {val!r}: {said}")
                 break
     return out
-

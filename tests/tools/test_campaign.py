@@ -306,13 +306,18 @@ def test_a_malformed_spec_exits_2_with_one_line_naming_the_field(doc, field, tmp
     ({"maneuver": {"name": "turning-circle"}, "vary": {"rudder_deg": {"normal": [20, 10], "clip": [5, 30]}}}, None),
     ({"maneuver": {"name": "hzz"}, "vary": {"amplitude_deg": [10, 30]}}, None),
     ({"mission": "circle", "vary": {"duration_s": [10, 20]}}, None),
+    ({"mission": "canyon_periscope_ss5", "vary": {"sea.hs": {"uniform": [1, 30]}}},
+     "vary.sea.hs = 30.0: the sea (jonswap Hs 30 m, Tp 9.7 s"),
+    ({"mission": "canyon_periscope_ss5", "vary": {"sea.hs": {"uniform": [1, 5]}}}, None),
 ])
-def test_plane_commands_beyond_the_planes_limit_are_warned_before_the_campaign(doc, said):
+def test_plane_commands_beyond_the_limit_and_seas_steeper_than_any_wave_are_warned_before_the_campaign(
+        doc, said):
     """Runs past the 30 deg limit fly at the limit (as bb2-sim maneuver warns): a sweep past it would give flat
-    figures without a word, so the campaign says so once per key, at its extreme values."""
-    from bb2_tools.campaign.worker import saturation_warnings
+    figures without a word; a sea past Michell's steepness does not exist.  The campaign says so once per key, at
+    its extreme values."""
+    from bb2_tools.campaign.worker import campaign_warnings
 
-    got = saturation_warnings(parse_spec({"seed": 1, "samples": 2, **doc}))
+    got = campaign_warnings(parse_spec({"seed": 1, "samples": 2, **doc}))
     if said is None:
         assert got == []
     else:
