@@ -98,3 +98,29 @@ def test_every_command_the_docs_name_is_installed_and_answers_help():
         assert exe.is_file(), f"{cmd} is named in the docs but not installed (pyproject [project.scripts])"
         r = subprocess.run([str(exe), "--help"], env=bare_env(), capture_output=True, text=True, timeout=120)
         assert r.returncode == 0 and r.stdout.startswith(f"usage: {cmd}"), (cmd, r.stdout[:300], r.stderr[-500:])
+
+
+def test_every_option_the_docs_show_a_command_with_is_in_its_help():
+    """An option the README (or the missions' README) writes after a command, on the same line (``bb2-launch ...
+    --compose``), is one that command's ``--help`` lists: the docs do not drift from the CLIs."""
+    import re
+
+    docs = (REPO / "README.md").read_text() + (REPO / "missions" / "README.md").read_text()
+    helps: dict[str, str] = {}
+    missing, seen = set(), 0
+    pattern = r"(bb2-(?:sim (?:maneuver|mission|sea)|launch|record|analyze|replay|campaign))\b([^`|]*)"
+    for line in docs.splitlines():
+        for m in re.finditer(pattern, line):
+            cmd, rest = m.group(1), m.group(2)
+            rest = re.sub(r"\bfor --[a-z0-9-]+", "", rest)  # "--wave-heading-deg D for --heading-deg": a rename
+            for opt in re.findall(r"(?<![\w-])(--[a-z][a-z0-9-]*)", rest):
+                if cmd not in helps:
+                    exe, *sub = cmd.split()
+                    r = subprocess.run([str(VENV_BIN / exe), *sub, "--help"], env=bare_env(), capture_output=True,
+                                       text=True, timeout=120)
+                    assert r.returncode == 0, (cmd, r.stderr[-500:])
+                    helps[cmd] = r.stdout
+                seen += 1
+                if not re.search(rf"(?<![\w-]){re.escape(opt)}(?![\w-])", helps[cmd]):
+                    missing.add((cmd, opt))
+    assert seen > 50 and not missing, sorted(missing)
