@@ -272,10 +272,11 @@ class Simulator(Node):
         self.min_state_subscribers = int(P("min_state_subscribers", 0,
                                            "wait for this many /bb2/state_native readers before the first step"))
         self._readers_since: float | None = None
-        self._awaiting_commands = self.time_mode is TimeMode.REALTIME and bool(P(
+        wait_for_commands = bool(P(  # (declared in lockstep too: one parameter list whatever the mode)
             "wait_for_commands", False, "real time: start the clock (the first deadline) only once valid plane and "
             "propeller commands answer the first state (re-sent every lockstep_retry_s), at most startup_timeout_s; "
             "false = step on the failsafe from the first tick until they come (bb2-launch sets it)"))
+        self._awaiting_commands = self.time_mode is TimeMode.REALTIME and wait_for_commands
         self.wait_for_readers = bool(P("wait_for_readers", False,
                                        "publish the first state only once every topic published here has a "
                                        "reader (a recorder), at most startup_timeout_s"))
