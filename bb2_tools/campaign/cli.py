@@ -165,6 +165,8 @@ def _run_campaign(spec: Any, out: Path, a: argparse.Namespace) -> int:
 
     journal = Journal(out / JOURNAL)
     try:
+        engine = make_engine(a.engine, a.workers, a.address, **({"batch": a.batch} if a.batch else {}))
+        engine.prepare()  # a cluster that cannot be reached: said before the folder is written
         if a.resume:
             check_campaign_yaml(out, spec)
             done = journal.recover()
@@ -174,7 +176,6 @@ def _run_campaign(spec: Any, out: Path, a: argparse.Namespace) -> int:
             out.mkdir(parents=True, exist_ok=True)
             write_campaign_yaml(out, spec)
             done = set()
-        engine = make_engine(a.engine, a.workers, a.address, **({"batch": a.batch} if a.batch else {}))
     except SpecError as e:
         return _fail(e)
     except OSError as e:

@@ -82,6 +82,9 @@ class LocalEngine:
     def describe(self) -> str:
         return f"local, {self.workers} worker process{'es' if self.workers != 1 else ''}"
 
+    def prepare(self) -> None:
+        """Nothing to reach before the campaign: the pool starts with the runs."""
+
     def run(self, spec: CampaignSpec, indices: Iterable[int], on_row: OnRow, on_tick: OnTick | None = None) -> None:
         import multiprocessing as mp
         from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -138,6 +141,19 @@ class LocalEngine:
 
 
 # ------------------------------------------------------------------------------------------ ray
+ADDRESS_PROBE_TIMEOUT_S = 5.0  # a TCP connect to --address HOST:PORT before Ray's own (minutes of retries)
+
+
+def _last_ray_cluster() -> str:
+    """The address ``ray start`` last wrote on this machine (what ``ray.init(address="auto")`` connects to), or ''."""
+    try:
+        from ray._private.utils import read_ray_address  # (Ray's own reader of its address file)
+
+        return read_ray_address() or ""
+    except Exception:  # noqa: BLE001 -- another Ray version: leave "auto" to Ray
+        return ""
+
+
 class RayEngine:
     """Ray tasks (1 CPU each) on a running cluster (``address`` = ``auto`` or ``HOST:PORT``) or, with no
     address, on a Ray instance started for this driver.  ``workers`` caps the runs in flight (default: twice
@@ -151,6 +167,36 @@ class RayEngine:
         self.batch = int(batch)
         self._cpus = 0
 
+    def prepare(self) -> None:
+        """Reach the cluster before the campaign starts (and writes its folder): a wrong ``--address`` is one line
+        and exit 2, not a driver waiting on Ray's connection retries."""
+        self._connect()
+
+    def _probe_address(self) -> None:
+        """A ``HOST:PORT`` (or ``ray://HOST:PORT``) that no process listens on is said at once: Ray itself retries
+        for minutes.  ``auto`` is Ray's to find (it fails at once when no cluster runs here)."""
+        import socket
+
+        from bb2_tools.campaign.errors import SpecError
+
+        addr = str(self.address or "")
+        hostport = addr[len("ray://"):] if addr.startswith("ray://") else addr
+        found = ""
+        if hostport == "auto":  # where Ray would look: RAY_ADDRESS, else the last cluster started on this machine
+            hostport = os.environ.get("RAY_ADDRESS", "") or _last_ray_cluster()
+            found = f" (auto: {hostport}, the last Ray cluster started on this machine)"
+        if not hostport or hostport == "auto":
+            return
+        host, sep, port = hostport.rpartition(":")
+        if not sep or not port.isdigit():
+            raise SpecError(f"--address {addr}: expected auto or HOST:PORT (the address `ray start --head` prints)")
+        try:
+            socket.create_connection((host or "127.0.0.1", int(port)), timeout=ADDRESS_PROBE_TIMEOUT_S).close()
+        except OSError as e:
+            raise SpecError(f"--address {addr}{found}: no Ray cluster answers there ({e.strerror or e}); start "
+                            f"one with `ray start --head` (it prints its address), or use --address auto on one of "
+                            f"its machines") from None
+
     def _connect(self) -> Any:
         import logging
 
@@ -163,6 +209,7 @@ class RayEngine:
         os.environ.setdefault("RAY_DEDUP_LOGS", "0")
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
         if not ray.is_initialized():
+            self._probe_address()
             kw: dict[str, Any] = {"log_to_driver": False, "logging_level": logging.WARNING,
                                   "include_dashboard": False} if self.address is None else \
                 {"log_to_driver": False, "logging_level": logging.WARNING}

@@ -324,6 +324,28 @@ def test_plane_commands_beyond_the_limit_and_seas_steeper_than_any_wave_are_warn
         assert len(got) == 1 and got[0].startswith(said), got
 
 
+def test_a_ray_address_nobody_answers_is_said_at_once_before_the_campaign_folder(tmp_path, monkeypatch):
+    """A wrong --address (nothing listens there, or auto finds a cluster that has stopped) is one line and exit 2
+    within seconds, and no campaign folder is written: Ray alone retried for minutes, with the progress bar up."""
+    pytest.importorskip("ray")
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        dead = s.getsockname()[1]
+    f = _write_spec(tmp_path / "s.yaml", {"mission": "circle", "samples": 2})
+    for address, said in ((f"127.0.0.1:{dead}", f"--address 127.0.0.1:{dead}: no Ray cluster answers there"),
+                          ("nonsense", "--address nonsense: expected auto or HOST:PORT")):
+        t0 = time.monotonic()
+        r = _campaign(str(f), "--out", str(tmp_path / "o"), "--engine", "ray", "--address", address, timeout=120)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and said in r.stderr, r.stderr
+        assert time.monotonic() - t0 < 60 and not (tmp_path / "o").exists()
+    from bb2_tools.campaign.engines import RayEngine
+    from bb2_tools.campaign.errors import SpecError
+
+    monkeypatch.setenv("RAY_ADDRESS", f"127.0.0.1:{dead}")  # where auto looks first
+    with pytest.raises(SpecError, match=rf"--address auto \(auto: 127.0.0.1:{dead}, .*\): no Ray cluster answers"):
+        RayEngine(address="auto")._probe_address()
+
+
 def test_bad_command_lines_exit_2(tmp_path):
     f = _write_spec(tmp_path / "s.yaml", {"mission": "circle"})
     r = _campaign(str(f), "--workers", "0")
