@@ -231,7 +231,7 @@ def _progress(enabled: bool, total: float):
 def run_maneuver_cli(a: argparse.Namespace) -> int:
     from .geometry import HullMeshError
     from .maneuvers import (CsvWriter, ManeuverError, build_model, check_initial_depth, maneuver_settings,
-                            run_maneuver, saturation_warning)
+                            channels, inapplicable_settings, run_maneuver, saturation_warning)
     from .outputs import OutputError, check_output_file, os_error_line
     from .waves import SeaStateError
 
@@ -241,6 +241,13 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
                               amplitude_deg=a.amplitude_deg, check_deg=a.check_deg, sail_planes=a.sail_planes,
                               planes_deg=a.planes_deg, duration=a.duration, profile=a.profile,
                               substeps=a.substeps)
+        given = {k: getattr(a, k) for k in ("rudder_deg", "amplitude_deg", "check_deg", "planes_deg", "sail_planes",
+                                             "heading_ref_deg", "depth_ref") if getattr(a, k, None) is not None}
+        unread = inapplicable_settings(s, given)
+        if unread:
+            opts = ", ".join("--" + k.replace("_", "-") for k in unread)
+            raise ManeuverError(f"{opts} do{'es' if len(unread) == 1 else ''} not apply to maneuver {s.name} "
+                                f"({channels(s)}): it would fly without {'it' if len(unread) == 1 else 'them'}")
         env = environment_from_args(a, s.sea_state)
         if env is not None:
             s = replace(s, environment=env, sea_state=env.sea.sea_state if env.sea.authors_table else 0)

@@ -120,6 +120,24 @@ def maneuver_settings(name: str, **overrides) -> ManeuverSettings:
     return s
 
 
+def inapplicable_settings(s: ManeuverSettings, given: Iterable[str]) -> list[str]:
+    """The settings among ``given`` (the ones a user set) that maneuver ``s`` does not read with its channels, in
+    the order given: a rudder for a zig-zag, an amplitude for a turning circle, imposed planes for anything but
+    ``open-loop``, a heading reference without the heading autopilot, a depth reference without the depth PID.
+    They would be ignored without a word; the CLIs refuse them."""
+    zigzag = "zigzag" in (s.vertical, s.horizontal)
+    reads = {"rudder_deg": s.horizontal == "rudder", "amplitude_deg": zigzag, "check_deg": zigzag,
+             "planes_deg": s.vertical == "imposed" and s.horizontal == "imposed",
+             "sail_planes": s.vertical == "zigzag", "heading_ref_deg": s.horizontal == "pd",
+             "depth_ref": s.vertical == "pid" or (s.vertical == "zigzag" and s.sail_planes == "pid")}
+    return [k for k in given if not reads.get(k, True)]
+
+
+def channels(s: ManeuverSettings) -> str:
+    """``vertical pid, horizontal rudder``: how maneuver ``s`` flies, for messages."""
+    return f"vertical {s.vertical}, horizontal {s.horizontal}"
+
+
 def _largest(planes_deg) -> float:
     return float(np.max(np.abs(planes_deg)))
 

@@ -311,7 +311,12 @@ def _check(spec: CampaignSpec, doc: dict[str, Any], what: str, *, build: bool = 
 
                 MissionRunner(m)
         else:
-            maneuver_settings_of(spec, doc)
+            from bb2_sim.maneuvers import channels, inapplicable_settings
+
+            s = maneuver_settings_of(spec, doc)
+            unread = inapplicable_settings(s, doc)
+            if unread:  # (as bb2-sim maneuver refuses them: they would be ignored)
+                raise SpecError(f"{', '.join(unread)} not read by maneuver {s.name} ({channels(s)})")
     except SpecError as e:
         raise SpecError(f"{what}: {e}") from None
     except (MissionError, ManeuverError, ValueError, TypeError, KeyError, OSError) as e:

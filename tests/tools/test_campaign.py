@@ -284,6 +284,8 @@ BAD = [
     ({"mission": "circle", "collect": ["rms_vertical", "rms_sideways"]}, "collect"),
     ({"maneuver": {"name": "barrel-roll"}}, "maneuver.name"),
     ({"maneuver": {"name": "turning-circle"}, "vary": {"rudder": [10, 20]}}, "vary.rudder"),
+    ({"maneuver": {"name": "hzz"}, "vary": {"rudder_deg": [10, 20]}}, "rudder_deg not read by maneuver hzz"),
+    ({"maneuver": {"name": "turning-circle", "options": {"amplitude_deg": 5}}}, "amplitude_deg not read"),
 ]
 
 
