@@ -174,7 +174,8 @@ class RayEngine:
 
     def _probe_address(self) -> None:
         """A ``HOST:PORT`` (or ``ray://HOST:PORT``) that no process listens on is said at once: Ray itself retries
-        for minutes.  ``auto`` is Ray's to find (it fails at once when no cluster runs here)."""
+        for minutes.  ``auto`` is probed where Ray would look (``RAY_ADDRESS``, else the address file of the last
+        cluster started on this machine); with neither, Ray itself says at once that no cluster runs here."""
         import socket
 
         from bb2_tools.campaign.errors import SpecError
@@ -183,8 +184,9 @@ class RayEngine:
         hostport = addr[len("ray://"):] if addr.startswith("ray://") else addr
         found = ""
         if hostport == "auto":  # where Ray would look: RAY_ADDRESS, else the last cluster started on this machine
-            hostport = os.environ.get("RAY_ADDRESS", "") or _last_ray_cluster()
-            found = f" (auto: {hostport}, the last Ray cluster started on this machine)"
+            env = os.environ.get("RAY_ADDRESS", "")
+            hostport = env or _last_ray_cluster()
+            found = f" (auto: {hostport}, {'from RAY_ADDRESS' if env else 'the last Ray cluster started here'})"
         if not hostport or hostport == "auto":
             return
         host, sep, port = hostport.rpartition(":")
