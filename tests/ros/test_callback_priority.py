@@ -158,7 +158,10 @@ def test_a_controller_runs_its_callbacks_at_callback_priority_and_says_so(tmp_pa
         probe.wait(lambda: {"/mixer_rt", "/mixer_normal", "/simulator", "/sim_rt", "/sim_rx", "/mixer_c"}
                    <= set(statuses())
                    and all(statuses()[n].get("scheduling", "").startswith(("SCHED_FIFO", "normal"))
-                           and "not yet" not in statuses()[n]["callback_scheduling"] for n in ("/sim_rt", "/sim_rx")),
+                           for n in ("/sim_rt", "/sim_rx"))
+                   # (the simulators' first status goes out as they come up, before they spin: "not yet set")
+                   and all("not yet" not in statuses()[n]["callback_scheduling"]
+                           for n in ("/simulator", "/sim_rt", "/sim_rx")),
                    60, "the mixers' and the simulators' status", procs[0])
         rt, normal = statuses()["/mixer_rt"], statuses()["/mixer_normal"]
         assert normal["callback_scheduling"] == "normal", normal
