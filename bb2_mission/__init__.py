@@ -10,8 +10,8 @@ It imports the numerical cores (bb2_control, bb2_planner, bb2_sim) and nothing a
 message packages.
 """
 from bb2_mission.components import (HullProbes, MissionComponents, build_mission_stack, build_mixer, build_model,
-                                    build_simulator, initial_state, mission_components, nominal_rps,
-                                    stack_overrides, substeps_warning, terrain_elevation)
+                                    build_simulator, initial_state, mission_components, mission_warnings,
+                                    nominal_rps, stack_overrides, substeps_warning, terrain_elevation)
 from bb2_mission.records import MISSION_COLUMNS, MissionRow, read_mission_csv, rows_to_columns
 from bb2_mission.runner import MissionResult, MissionRunner, MissionStep, run_mission
 from bb2_mission.schema import (MISSIONS_DIR, InitialState, Limits, Mission, MissionError, load_mission,
@@ -25,4 +25,5 @@ __all__ = [
     "run_mission", "limit_event", "read_mission_csv", "rows_to_columns", "path_errors_closest", "terrain_elevation",
     "summarize",
     "build_model", "build_simulator", "build_mission_stack", "build_mixer", "nominal_rps", "substeps_warning",
+    "mission_warnings",
 ]

@@ -27,7 +27,8 @@ from bb2_mission.schema import RPS_PATH_MEAN_SPEED, Mission, MissionError, _reso
 __all__ = ["MissionComponents", "HullProbes", "mission_components", "check_initial_state", "stack_overrides",
            "initial_state", "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer",
            "build_sensor_suite", "sensor_spec", "cg_clearance", "step_truths",
-           "build_navigation_filter", "nominal_rps", "substeps_warning"]
+           "build_navigation_filter", "nominal_rps", "substeps_warning",
+           "mission_warnings"]
 
 
 def stack_overrides(m: Mission) -> dict[str, Any]:
@@ -269,6 +270,13 @@ def substeps_warning(m: Mission, rps: float | None = None) -> str:
     rps = nominal_rps(m) if rps is None else float(rps)
     speed = max(float(np.linalg.norm(initial_state(m)[6:9])), cruise_speed(rps))
     return speed_warning(speed, m.substeps, "the mission's substeps:", f"mission {m.name} ({rps:.2f} rps)")
+
+
+def mission_warnings(m: Mission, rps: float | None = None) -> list[str]:
+    """What to say before mission ``m`` flies, one line each: faster than its sub-steps fly
+    (:func:`substeps_warning`, ``rps`` as there) and a sea steeper than any deep-water wave
+    (``bb2_sim.environment.SeaSpec.steepness_warning``).  ``[]`` when nothing is to be said."""
+    return [w for w in (substeps_warning(m, rps), m.environment.sea.steepness_warning()) if w]
 
 
 def nominal_rps(m: Mission) -> float:

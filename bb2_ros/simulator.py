@@ -137,7 +137,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from bb2_mission.components import (build_model, build_navigation_filter, build_sensor_suite, build_simulator,
-                                    nominal_rps, sensor_spec, step_truths, substeps_warning)
+                                    mission_warnings, nominal_rps, sensor_spec, step_truths)
 from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, RecorderAck,
                                        StepDecision, TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
@@ -330,8 +330,8 @@ class Simulator(Node):
                         startup_timeout_s=self.startup_timeout_s, startup_settle_s=self.startup_settle_s,
                         command_timeout_s=self.command_timeout_s),
             nominal_rps=rps)
-        too_fast = build_piece(self.mission, lambda m: substeps_warning(m, rps))  # faster than its sub-steps fly
-        for warning in filter(None, (too_fast, self.mission.environment.sea.steepness_warning())):
+        # faster than its sub-steps fly, a sea steeper than any wave
+        for warning in build_piece(self.mission, lambda m: mission_warnings(m, rps)):
             self.get_logger().warning(warning)
         self._failsafe_shown = False  # the failsafe state last logged / published
         self._takeover_t: float | None = None  # sim time of the first step on valid commands

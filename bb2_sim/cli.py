@@ -241,9 +241,9 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
                               amplitude_deg=a.amplitude_deg, check_deg=a.check_deg, sail_planes=a.sail_planes,
                               planes_deg=a.planes_deg, duration=a.duration, profile=a.profile,
                               substeps=a.substeps)
-        given = {k: getattr(a, k) for k in ("rudder_deg", "amplitude_deg", "check_deg", "planes_deg", "sail_planes",
-                                             "heading_ref_deg", "depth_ref") if getattr(a, k, None) is not None}
-        unread = inapplicable_settings(s, given)
+        unread = inapplicable_settings(s, [k for k in ("rudder_deg", "amplitude_deg", "check_deg", "planes_deg",
+                                                       "sail_planes", "heading_ref_deg", "depth_ref")
+                                           if getattr(a, k, None) is not None])
         if unread:
             opts = ", ".join("--" + k.replace("_", "-") for k in unread)
             raise ManeuverError(f"{opts} do{'es' if len(unread) == 1 else ''} not apply to maneuver {s.name} "

@@ -344,15 +344,15 @@ def _load_yaml_mapping(path: Path, what: str) -> dict:
 
 def check_mission(path: Path) -> str:
     """Validate the mission file with ``bb2_mission.load_mission`` (when available); returns '' or a warning to say
-    before the flight (a mission faster than its ROM sub-steps fly: ``bb2_mission.substeps_warning``; a sea steeper
-    than any deep-water wave: ``SeaSpec.steepness_warning``)."""
+    before the flight (``bb2_mission.mission_warnings``: a mission faster than its ROM sub-steps fly, a sea steeper
+    than any deep-water wave)."""
     _load_yaml_mapping(path, "mission file")
     try:
         from bb2_mission import load_mission
     except ImportError:
         return ""
     try:
-        from bb2_mission.components import check_initial_state, substeps_warning
+        from bb2_mission.components import check_initial_state, mission_warnings
 
         m = load_mission(path)
         check_initial_state(m)   # above the surface / inside the sea floor: refused up front
@@ -360,7 +360,7 @@ def check_mission(path: Path) -> str:
         msg = str(exc)
         raise LaunchError(msg if str(path) in msg else f"mission {path}: {msg}") from None
     try:
-        return "; ".join(filter(None, (substeps_warning(m), m.environment.sea.steepness_warning())))
+        return "; ".join(mission_warnings(m))
     except Exception:  # noqa: BLE001 -- a warning never stops a launch (the simulator node builds the same)
         return ""
 

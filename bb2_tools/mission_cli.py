@@ -66,9 +66,9 @@ def run_mission_cli(a: argparse.Namespace) -> int:
               f"adaptation {'on' if m.adaptation else 'off'}, terrain {m.terrain_source or 'none'}, "
               f"duration limit {m.duration:g} s")
         print(f"  sea: {m.environment.summary()}")
-    from bb2_mission import substeps_warning
+    from bb2_mission import mission_warnings
 
-    for warning in filter(None, (substeps_warning(m), m.environment.sea.steepness_warning())):
+    for warning in mission_warnings(m):
         print(f"bb2-sim: warning: {warning}", file=sys.stderr)
 
     def progress(t: float) -> None:
