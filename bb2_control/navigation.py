@@ -43,7 +43,7 @@ not used.
 :meth:`NavigationFilter.state` gives the estimate at a time as a :class:`~bb2_sim.state.VehicleState` in the
 ROM's native frames, the heading unwrapped continuously from the initial one::
 
-    nav = NavigationFilter(suite.config, x0_native, rho=1025.0, g=9.81)
+    nav = NavigationFilter(suite.config, x0_native, rho=p.rho, g=p.g)   # p = bb2_sim.parameters.load_parameters()
     for each tick n:  state_n = nav.state(t_n);  ... ;  nav.update(suite.step(truth_n, truth_n+1))
 """
 from __future__ import annotations
@@ -57,6 +57,7 @@ import numpy as np
 
 from bb2_control.config import DATA_DIR, load_mapping, require
 from bb2_control.errors import ControlConfigError
+from bb2_sim.constants import G_M_S2, RHO_KG_M3
 from bb2_sim.sensors.config import rotation_rpy
 from bb2_sim.state import VehicleState
 
@@ -140,8 +141,8 @@ class NavigationFilter:
     """The filter of the module docstring, for the sensors of ``suite`` (a ``SuiteConfig``), started at the ROM
     state ``x0_native`` (12, native frames) at time ``t0``."""
 
-    def __init__(self, suite: Any, x0_native: np.ndarray, *, t0: float = 0.0, rho: float = 1025.0,
-                 g: float = 9.81, settings: NavigationSettings | None = None) -> None:
+    def __init__(self, suite: Any, x0_native: np.ndarray, *, t0: float = 0.0, rho: float = RHO_KG_M3,
+                 g: float = G_M_S2, settings: NavigationSettings | None = None) -> None:
         if getattr(suite, "imu", None) is None:
             raise ControlConfigError(f"navigation: sensors needs an IMU in the sensor suite (attitude and rates); "
                                      f"the suite {getattr(suite, 'name', '?')!r} has none")

@@ -34,6 +34,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .constants import G_M_S2
 from .current import Current
 from .sea import (AuthorsTableSea, ComponentSea, Cos2sSpreading, Sea, SeaInputError, WaveComponents, calm_sea,
                   discretise, read_components_csv, regular_components, sea_state_hs_tp, spectrum)
@@ -105,7 +106,7 @@ class SeaSpec:
             return (self.hs if self.hs is not None else hs), (self.tp if self.tp is not None else tp)
         return self.hs, self.tp
 
-    def wave_components(self, g: float = 9.81) -> WaveComponents | None:
+    def wave_components(self, g: float = G_M_S2) -> WaveComponents | None:
         """The linear components of this sea (None = calm or the authors' table)."""
         if self.authors_table:
             return None
@@ -168,7 +169,7 @@ class SeaSpec:
             out[k] = v
         return out
 
-    def steepness_warning(self, g: float = 9.81) -> str:
+    def steepness_warning(self, g: float = G_M_S2) -> str:
         """Before a run: '' or one line when this sea is steeper than any deep-water wave can be (a regular wave's
         H / L, a spectrum's Hs / Lp, with L = g T^2 / 2 pi, beyond the breaking limit of ``data/sea_spectra.yaml``):
         a typo (Hs 30 m, Tp 0.9 s) more often than a sea.  The linear model flies it all the same.  Not checked:
@@ -395,7 +396,7 @@ class Environment:
     def summary(self) -> str:
         return f"{self.sea.summary()}; {self.current.summary()}"
 
-    def description(self, g: float = 9.81) -> dict[str, Any]:
+    def description(self, g: float = G_M_S2) -> dict[str, Any]:
         """JSON-safe record of the sea and current: the blocks as given plus the realised components in
         full precision (radians), from which :func:`environment_from_description` rebuilds the same sea."""
         comps = self.sea.wave_components(g)
@@ -407,7 +408,7 @@ class Environment:
         return {"format": DESCRIPTION_FORMAT, "sea": sea, "current": self.current.as_dict(), "g": float(g),
                 "components": realised, "summary": self.summary()}
 
-    def description_json(self, g: float = 9.81) -> str:
+    def description_json(self, g: float = G_M_S2) -> str:
         return json.dumps(self.description(g), allow_nan=False)
 
 

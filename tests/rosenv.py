@@ -168,12 +168,18 @@ def launch_with_fault(mission: Path, out: Path, *args: str, fault, min_sim_s: fl
                           "simulator", "--timeout", "600", "--status-period", "0.5", *args], cwd=out.parent,
                          env=ros_env(),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    seen = ""
     try:
         seen = read_until_sim_time(p, min_sim_s)
-        if fault_reads_launcher:
-            seen += fault(p, seen)
-        else:
-            fault()
+        try:
+            if fault_reads_launcher:
+                seen += fault(p, seen)
+            else:
+                fault()
+        except OSError as exc:  # e.g. the node's process gone before its SIGCONT: say what the launcher saw
+            p.kill()
+            _, err = p.communicate(timeout=30)
+            raise AssertionError(f"the fault failed ({exc!r}); bb2-launch printed:\n{(seen + err)[-4000:]}") from exc
         _, err = p.communicate(timeout=timeout_s)
     finally:
         if p.poll() is None:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..constants import G_M_S2
 from .data import sea_data
 from .errors import SeaInputError, finite
 from .spreading import Cos2sSpreading
@@ -30,7 +31,7 @@ class WaveComponents:
     omega: np.ndarray
     direction: np.ndarray
     phase: np.ndarray
-    g: float = 9.81
+    g: float = G_M_S2
 
     def __post_init__(self):
         arrs = [np.atleast_1d(np.asarray(a, dtype=float)).copy() for a in
@@ -64,7 +65,7 @@ class WaveComponents:
 
 
 def regular_components(amplitude: float, period: float, direction_deg: float = 0.0, phase_deg: float = 0.0,
-                       g: float = 9.81) -> WaveComponents:
+                       g: float = G_M_S2) -> WaveComponents:
     """One regular wave a cos(k (x cos mu + y sin mu) - omega t + eps)."""
     a = finite("amplitude", amplitude, nonnegative=True)
     T = finite("period", period, positive=True)
@@ -75,7 +76,7 @@ def regular_components(amplitude: float, period: float, direction_deg: float = 0
 def discretise(spec, n: int, *, seed: int | None = 0, method: str = "equal_energy",
                spreading: Cos2sSpreading | None = None, mean_direction_deg: float = 0.0,
                n_directions: int | None = None, jitter: float | None = None,
-               omega_range_over_wp: tuple[float, float] | None = None, g: float = 9.81) -> WaveComponents:
+               omega_range_over_wp: tuple[float, float] | None = None, g: float = G_M_S2) -> WaveComponents:
     """N components of the spectrum ``spec`` (see ``sea_spectra.yaml`` -> ``discretisation``).
 
     method ``equal_energy`` (bins of equal energy) or ``equal_domega`` (bins of equal width); in both the
@@ -130,7 +131,7 @@ def discretise(spec, n: int, *, seed: int | None = 0, method: str = "equal_energ
     return WaveComponents(amp, omega, direction, phase, g)
 
 
-def read_components_csv(path: str | Path, g: float = 9.81) -> WaveComponents:
+def read_components_csv(path: str | Path, g: float = G_M_S2) -> WaveComponents:
     """A user component list: a CSV with the header ``amplitude_m, omega_rad_s, direction_deg, phase_deg``."""
     with open(path, newline="") as fh:
         rows = list(csv.DictReader(fh))

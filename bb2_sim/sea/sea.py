@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from ..constants import G_M_S2
 from ..waves import Wave, orbital_velocity_earth, pressure
 from .components import WaveComponents
 
@@ -111,7 +112,7 @@ class ComponentSea(Sea):
 class AuthorsTableSea(Sea):
     """The authors' regular head-sea wave of a sea state (SPEC 7.4), through :mod:`bb2_sim.waves` as is."""
 
-    def __init__(self, wave: Wave, g: float = 9.81):
+    def __init__(self, wave: Wave, g: float = G_M_S2):
         self.wave = wave
         self.g = g
         self.calm = wave.calm

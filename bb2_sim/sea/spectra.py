@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..constants import G_M_S2
 from .data import sea_data
 from .errors import SeaInputError, finite
 
@@ -53,7 +54,7 @@ class PiersonMoskowitzSpectrum:
     """Fully developed sea: S = alpha g^2 w^-5 exp(-5/4 (wp/w)^4), wp fixed by Hs (alpha from the data)."""
 
     hs: float
-    g: float = 9.81
+    g: float = G_M_S2
     name: str = field(default="pierson_moskowitz", init=False)
 
     def __post_init__(self):

@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from ..constants import G_M_S2, RHO_KG_M3
 from .altimeter import AltimeterModel
 from .config import SENSOR_NAMES, FaultSpec, SuiteConfig
 from .dvl import DvlModel
@@ -42,8 +43,8 @@ class SensorEnvironment:
 
     sea: Any = None
     current: Any = None
-    rho: float = 1025.0
-    g: float = 9.81
+    rho: float = RHO_KG_M3
+    g: float = G_M_S2
 
 
 def sea_of_model(model: Any) -> Any:

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..constants import G_M_S2
+
 __all__ = ["TruthSample", "TruthBatch", "truth_from_step", "interpolate", "rotations_enu_flu",
            "specific_force_native"]
 
@@ -31,10 +33,10 @@ class TruthSample:
     v_dot_body_native: np.ndarray     #: d(u, v, w)/dt in body axes, m/s^2
     w_dot_body_native: np.ndarray     #: d(p, q, r)/dt, rad/s^2
     clearance_m: float = math.nan     #: CG height above the terrain (vertical), m; NaN = unknown
-    g: float = 9.81
+    g: float = G_M_S2
 
 
-def truth_from_step(t: float, x12, xdot12=None, clearance_m: float = math.nan, g: float = 9.81) -> TruthSample:
+def truth_from_step(t: float, x12, xdot12=None, clearance_m: float = math.nan, g: float = G_M_S2) -> TruthSample:
     """A :class:`TruthSample` from the ROM's state and its derivative (``StepRecord.ev.xdot``; None = zeros)."""
     x = np.array(x12, dtype=float)
     xd = np.zeros(12) if xdot12 is None else np.asarray(xdot12, dtype=float)

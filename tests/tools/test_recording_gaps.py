@@ -78,11 +78,17 @@ def _stop_while_the_graph_steps(out: Path, timeline: dict):
 
 
 def _stop_for(pid: int, seconds: float) -> None:
+    from rosenv import command_line
+
+    stopped = command_line(pid)  # what was stopped, said if it is gone before its SIGCONT (seen once, unexplained)
     os.kill(pid, signal.SIGSTOP)
     try:
         time.sleep(seconds)
     finally:
-        os.kill(pid, signal.SIGCONT)
+        try:
+            os.kill(pid, signal.SIGCONT)
+        except ProcessLookupError:
+            raise ProcessLookupError(f"pid {pid} ({stopped!r}) ended while stopped") from None
 
 
 def _stamps(bag: Path) -> dict[str, set[int]]:
