@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from dataclasses import asdict, replace
+from dataclasses import asdict
 
 
 class InputError(ValueError):
@@ -193,20 +193,12 @@ def add_sea_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
-def environment_from_args(a: argparse.Namespace, sea_state: float):
-    """The maneuver's :class:`~bb2_sim.environment.Environment` from the sea and current options (None: the
-    authors' sea-state table alone, exactly as before). ``sea_state`` is the maneuver's (given or default)."""
-    from .environment import Environment, current_from_mapping, sea_from_mapping
-
-    block = sea_block_from_args(a, a.sea_state)
-    cur = None
-    if a.current_mps is not None or a.current_heading_deg is not None:
-        cur = {"speed_mps": a.current_mps if a.current_mps is not None else 0.0,
-               "heading_deg": a.current_heading_deg if a.current_heading_deg is not None else 0.0}
-    if block is None and cur is None:
+def current_block_from_args(a: argparse.Namespace) -> dict | None:
+    """The ``current:`` mapping of the current options (None if none was given)."""
+    if a.current_mps is None and a.current_heading_deg is None:
         return None
-    sea = sea_from_mapping(block if block is not None else {"sea_state": sea_state})
-    return Environment(sea, current_from_mapping(cur))
+    return {"speed_mps": a.current_mps if a.current_mps is not None else 0.0,
+            "heading_deg": a.current_heading_deg if a.current_heading_deg is not None else 0.0}
 
 
 def _fmt(value) -> str:
@@ -231,7 +223,7 @@ def _progress(enabled: bool, total: float):
 def run_maneuver_cli(a: argparse.Namespace) -> int:
     from .geometry import HullMeshError
     from .maneuvers import (CsvWriter, ManeuverError, build_model, check_initial_depth, maneuver_settings,
-                            channels, inapplicable_settings, run_maneuver, saturation_warning)
+                            channels, inapplicable_settings, run_maneuver, saturation_warning, with_sea)
     from .outputs import OutputError, check_output_file, os_error_line
     from .waves import SeaStateError
 
@@ -248,9 +240,7 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
             opts = ", ".join("--" + k.replace("_", "-") for k in unread)
             raise ManeuverError(f"{opts} do{'es' if len(unread) == 1 else ''} not apply to maneuver {s.name} "
                                 f"({channels(s)}): it would fly without {'it' if len(unread) == 1 else 'them'}")
-        env = environment_from_args(a, s.sea_state)
-        if env is not None:
-            s = replace(s, environment=env, sea_state=env.sea.sea_state if env.sea.authors_table else 0)
+        s = with_sea(s, sea_block_from_args(a, a.sea_state), current_block_from_args(a), a.sea_state)
         model = build_model(s, a.hull_mesh)
         check_initial_depth(s, model)
     except (ManeuverError, SeaStateError, HullMeshError, ValueError) as e:

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Mapping
 
 import numpy as np
 
@@ -103,21 +103,68 @@ class ManeuverSettings:
 
 
 def maneuver_settings(name: str, **overrides) -> ManeuverSettings:
-    """Defaults of maneuver ``name`` with user overrides (None values are ignored); validated."""
+    """Defaults of maneuver ``name`` with user overrides (None values are ignored); validated.
+
+    ``sea`` and ``current``: a mission's ``sea:`` and ``current:`` blocks (mappings,
+    :mod:`bb2_sim.environment`), for settings written as a document (a campaign's maneuver options): the
+    maneuver then flies in that sea and current, as ``bb2-sim maneuver`` with the same sea and current options
+    (:func:`with_sea`)."""
     cat = _catalogue()
     if name not in cat:
         raise ManeuverError(f"unknown maneuver {name!r} (choose from {', '.join(cat)})")
     d = dict(cat[name])
     d.update({k: v for k, v in overrides.items() if v is not None})
+    sea_doc, current_doc = d.pop("sea", None), d.pop("current", None)
     known = {f.name for f in fields(ManeuverSettings)}
     bad = set(d) - known
     if bad:
-        raise ManeuverError(f"unknown maneuver setting(s): {sorted(bad)}")
+        import difflib
+
+        settable = sorted(known - {"name", "doc", "environment"} | {"sea", "current"})
+        hints = [f"{b!r} (did you mean {close[0]!r}?)" if (close := difflib.get_close_matches(b, settable, 1, 0.6))
+                 else repr(b) for b in sorted(bad)]
+        raise ManeuverError(f"unknown maneuver setting(s): {', '.join(hints)}; known: {', '.join(settable)}")
     if "planes_deg" in d:
         d["planes_deg"] = tuple(float(v) for v in d["planes_deg"])
+    from .environment import Environment
+
+    if d.get("environment") is not None and not isinstance(d["environment"], Environment):
+        raise ManeuverError(f"environment must be a bb2_sim.environment.Environment, got {d['environment']!r}: "
+                            "in a document, give the sea and the current as sea: and current: blocks")
     s = ManeuverSettings(name=name, **d)
+    if sea_doc is not None or current_doc is not None:
+        if s.environment is not None:
+            raise ManeuverError("give either an environment or sea: / current: blocks, not both")
+        s = with_sea(s, sea_doc, current_doc, overrides.get("sea_state"))
     validate(s)
     return s
+
+
+def with_sea(s: ManeuverSettings, sea: Mapping[str, Any] | None = None, current: Mapping[str, Any] | None = None,
+             sea_state: float | None = None) -> ManeuverSettings:
+    """``s`` flying in the sea and current of a mission's ``sea:`` / ``current:`` blocks (None: not given; both
+    None: ``s`` as it is, in its sea state of the authors' table), as ``bb2-sim maneuver`` does with its sea and
+    current options.  ``sea_state``: the one the user gave with the settings (None: the maneuver's default, which a
+    sea block does not take): it goes into the sea block (a spectrum's Hs and Tp from the sea-state table), which
+    may then name no other.  A current alone flies in the maneuver's sea state.  :class:`ManeuverError` for a bad
+    block, naming its key."""
+    if sea is None and current is None:
+        return s
+    from .environment import Environment, current_from_mapping, sea_from_mapping
+    from .sea import SeaInputError
+
+    block: Any = {"sea_state": s.sea_state}
+    if sea is not None:
+        block = sea
+        if sea_state is not None and isinstance(sea, Mapping):
+            if sea.get("sea_state", sea_state) != sea_state:
+                raise ManeuverError(f"sea_state {sea_state:g} and sea.sea_state {sea['sea_state']!r}: give one")
+            block = {**sea, "sea_state": sea_state}
+    try:
+        env = Environment(sea_from_mapping(block), current_from_mapping(current))
+    except SeaInputError as e:
+        raise ManeuverError(str(e)) from None
+    return replace(s, environment=env, sea_state=env.sea.sea_state if env.sea.authors_table else 0)
 
 
 def inapplicable_settings(s: ManeuverSettings, given: Iterable[str]) -> list[str]:

@@ -33,7 +33,9 @@ initial state (``initial.*``), limit, profile (``profile``), sea / current field
 stack gain can be varied.  A stack given by name becomes ``{base: NAME}`` first, so
 ``stack.autopilot.K_q_deg_per_radps`` or ``stack.guidance.d_m`` overrides one gain of the named stack.
 Maneuvers: the keys are the maneuver settings of ``bb2_sim.maneuvers.ManeuverSettings`` (``rudder_deg``,
-``speed_mps``, ``depth``, ``sea_state``, ``profile``, ``duration``, ...).  Before flying, every varied key is
+``speed_mps``, ``depth``, ``sea_state``, ``profile``, ``duration``, ...) and a mission's ``sea:`` / ``current:``
+blocks (``sea.hs``, ``current.speed_mps``; :func:`bb2_sim.maneuvers.with_sea`, as ``bb2-sim maneuver``'s sea and
+current options).  Before flying, every varied key is
 set, run 0 is built (a failure names the key that alone gives the same fault, else the mission's own message
 names the field), and every value of each choice / grid is checked on run 0: a bad key stops the campaign at
 once.

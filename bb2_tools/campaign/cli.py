@@ -98,7 +98,7 @@ def _run_only(spec: Any, index: int, out: Path) -> int:
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    from bb2_sim.maneuvers import CSV_COLUMNS, CsvWriter
+    from bb2_sim.maneuvers import OUTPUT_COLUMNS, CsvWriter
     from bb2_tools.campaign.store import results_schema
     from bb2_tools.campaign.worker import run_one
 
@@ -112,7 +112,7 @@ def _run_only(spec: Any, index: int, out: Path) -> int:
             on_row = writer.write
         else:
             traj_file = out / f"{spec.maneuver}.csv"
-            writer = CsvWriter(traj_file, CSV_COLUMNS)
+            writer = CsvWriter(traj_file, OUTPUT_COLUMNS)   # bb2-sim maneuver --out's columns
             on_row = writer.write
     except OSError as e:
         return _fail(f"cannot write into {out}: {e}")

@@ -286,6 +286,10 @@ BAD = [
     ({"maneuver": {"name": "turning-circle"}, "vary": {"rudder": [10, 20]}}, "vary.rudder"),
     ({"maneuver": {"name": "hzz"}, "vary": {"rudder_deg": [10, 20]}}, "rudder_deg not read by maneuver hzz"),
     ({"maneuver": {"name": "turning-circle", "options": {"amplitude_deg": 5}}}, "amplitude_deg not read"),
+    ({"maneuver": {"name": "turning-circle", "options": {"duration_s": 20}}}, "did you mean 'duration'"),
+    ({"maneuver": {"name": "turning-circle", "options": {"environment": {"hs": 2}}}}, "sea: and current: blocks"),
+    ({"maneuver": {"name": "turning-circle", "options": {"sea": {"spectrum": "jonswap", "hs": 2, "tp": 8}}},
+      "vary": {"sea.swell": [1, 2]}}, "vary.sea.swell"),
 ]
 
 
@@ -369,6 +373,44 @@ def test_maneuver_campaign_collects_the_printed_figures(tmp_path):
     assert row["status"] == "ok" and row["rudder_deg"] == 20 and res.settings.rudder_deg == 20
     assert math.isclose(row["peak_roll_deg"], math.degrees(row["peak_roll_rad"]), rel_tol=1e-15)
     shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+def test_a_maneuver_campaign_in_a_sea_and_a_current_flies_as_bb2_sim_maneuver(tmp_path):
+    """A maneuver's options take a mission's sea: and current: blocks, varied by dotted keys (each run's own seed
+    its wave phases with ``seed_key: sea.seed``).  A run alone (``--only 3 --out-run DIR``) writes, byte for byte,
+    the CSV that ``bb2-sim maneuver`` writes with the same sea and current options: every column, ``eta_cg_m``
+    included, under a header that names them all (it named one fewer than its rows held)."""
+    doc = {"maneuver": {"name": "turning-circle",
+                        "options": {"rudder_deg": 20, "duration": 6,
+                                    "sea": {"spectrum": "jonswap", "hs": 2, "tp": 8, "heading_deg": 45}}},
+           "seed": 7, "samples": 2, "seed_key": "sea.seed",
+           "vary": {"sea.hs": {"uniform": [1, 3]}, "current.speed_mps": [0, 0.5]},
+           "collect": ["initial_speed_m_s", "peak_roll_deg"]}
+    f = _write_spec(tmp_path / "sea.yaml", doc)
+    r = _campaign(str(f), "--only", "3", "--out-run", str(tmp_path / "run3"))
+    assert r.returncode == 0, r.stderr
+    row = pa.csv.read_csv(tmp_path / "run3" / "run.csv").to_pylist()[0]
+    assert row["status"] == "ok" and row["current.speed_mps"] == 0.5 and 1 <= row["sea.hs"] <= 3, row
+    alone = tmp_path / "cli.csv"
+    c = subprocess.run([str(BIN / "bb2-sim"), "maneuver", "turning-circle", "--rudder-deg", "20", "--duration", "6",
+                        "--spectrum", "jonswap", "--hs", repr(row["sea.hs"]), "--tp", "8", "--wave-heading-deg", "45",
+                        "--seed", str(row["seed"]), "--current-mps", "0.5", "--out", str(alone), "--quiet"],
+                       cwd=REPO, env=_env(), capture_output=True, text=True, timeout=240)
+    assert c.returncode == 0, c.stderr
+    assert f"seed {row['seed']}; current 0.5 m/s" in c.stdout, c.stdout   # the run's own seed, its current
+    ours = (tmp_path / "run3" / "turning-circle.csv").read_text()
+    assert ours == alone.read_text()
+    lines = ours.splitlines()
+    assert lines[0].split(",")[-1] == "eta_cg_m" and len(lines) > 50
+    assert {len(ln.split(",")) for ln in lines} == {len(lines[0].split(","))}
+    # and the sea is the run's own: run 2 (the same draw of sea.hs, no current) flies other waves
+    from bb2_tools.campaign.worker import run_one
+
+    spec = parse_spec(doc)
+    (r2, res2), (r3, res3) = run_one(spec, 2), run_one(spec, 3)
+    assert r2["sea.hs"] == r3["sea.hs"] and r2["seed"] != r3["seed"]
+    assert res2.settings.environment.sea.seed == r2["seed"] and res3.settings.environment.current.speed_mps == 0.5
+    assert r3["peak_roll_deg"] == row["peak_roll_deg"]
 
 
 def test_a_campaign_over_the_sensor_noise_collects_the_navigation_figures(tmp_path):
