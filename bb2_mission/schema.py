@@ -4,7 +4,8 @@ Mission file (YAML; every key optional except ``path``; unknown keys are an erro
 
     name: canyon                       # default: file stem
     description: free text
-    extends: other.yaml                # start from another mission file (nested mappings merge)
+    extends: other.yaml                # start from another mission file (nested mappings merge): beside
+                                       # this file, else the working directory, else a shipped name (canyon)
     path: synthetic_canyon             # shipped path name, a path file (relative to this file), or an
                                        # inline path document (bb2_planner.paths format)
     stack: rate_2022                   # stack name, stack file, or inline stack mapping (``base: ...``)
@@ -76,7 +77,7 @@ from bb2_sim.sensors.config import SensorConfigError, SensorSpec, navigation_fro
 from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["MissionError", "InitialState", "Limits", "Mission", "MISSIONS_DIR", "RPS_PATH_MEAN_SPEED", "FORMAT",
-           "load_mission", "mission_from_dict", "initial_state"]
+           "load_mission", "mission_file", "read_mission_document", "mission_from_dict", "initial_state"]
 
 MISSIONS_DIR = Path(__file__).resolve().parents[1] / "missions"
 RPS_PATH_MEAN_SPEED = "path_mean_speed"
@@ -440,17 +441,28 @@ def initial_state(m: Mission) -> np.ndarray:
     return x0
 
 
-def load_mission(file: str | Path) -> Mission:
-    """Load and validate a mission file; a bare name (``canyon``) is looked up in ``missions/``."""
+def mission_file(file: str | Path) -> Path:
+    """The mission file ``file`` names: itself, or for a bare name not found here (``canyon``) ``missions/``'s."""
     f = Path(file)
     if not f.exists() and f.suffix == "" and (MISSIONS_DIR / f"{f}.yaml").exists():
-        f = MISSIONS_DIR / f"{f}.yaml"
+        return MISSIONS_DIR / f"{f}.yaml"
+    return f
+
+
+def read_mission_document(file: str | Path) -> dict[str, Any]:
+    """The document of mission file ``file`` (:func:`mission_file`) with its ``extends`` chain merged, nested
+    mappings key by key.  Each ``extends`` is looked up beside the file that names it, then in the working
+    directory, then, a bare name, in ``missions/`` (``extends: canyon``).  :class:`MissionError` naming the file."""
+    f = mission_file(file)
     doc = _read_yaml(f)
     seen = {f.resolve()}
     holder = f                  # the file whose extends is being resolved (relative to its own folder)
     while "extends" in doc:
         base = doc.pop("extends")
         bf = _resolve_file(str(base), holder.parent) if isinstance(base, str) else None
+        if bf is None and isinstance(base, str) and Path(base).suffix == "" and "/" not in base \
+                and (MISSIONS_DIR / f"{base}.yaml").exists():
+            bf = MISSIONS_DIR / f"{base}.yaml"
         if bf is None:
             raise MissionError(f"{holder}: extends: mission file {base!r} not found")
         if bf.resolve() in seen:
@@ -458,5 +470,12 @@ def load_mission(file: str | Path) -> Mission:
         seen.add(bf.resolve())
         doc = _merge(_read_yaml(bf), doc)          # the base's own extends comes with it
         holder = bf
+    return doc
+
+
+def load_mission(file: str | Path) -> Mission:
+    """Load and validate a mission file; a bare name (``canyon``) is looked up in ``missions/``."""
+    f = mission_file(file)
+    doc = read_mission_document(f)
     return mission_from_dict(doc, base_dir=f.parent, name=f.stem, source_file=f)
 

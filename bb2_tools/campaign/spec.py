@@ -317,37 +317,14 @@ class CampaignSpec:
 
 
 def _read_mission_document(file: Path) -> dict[str, Any]:
-    """A mission file with its ``extends`` chain merged (as :func:`bb2_mission.schema.load_mission` does)."""
-    def read(f: Path) -> dict[str, Any]:
-        try:
-            doc = load_yaml(f.read_text())
-        except OSError as e:
-            raise SpecError(f"mission: cannot read {f} ({e.strerror})") from None
-        except yaml.YAMLError as e:
-            raise SpecError(f"mission: {f} is not valid YAML ({' '.join(str(e).split())})") from None
-        if not isinstance(doc, dict):
-            raise SpecError(f"mission: {f} is not a mapping of mission settings")
-        return doc
+    """A mission file with its ``extends`` chain merged (:func:`bb2_mission.schema.read_mission_document`, what
+    :func:`bb2_mission.schema.load_mission` reads)."""
+    from bb2_mission.schema import MissionError, read_mission_document
 
-    def merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
-        out = dict(base)
-        for k, v in over.items():
-            out[k] = merge(out[k], v) if isinstance(v, Mapping) and isinstance(out.get(k), Mapping) else v
-        return out
-
-    doc = read(file)
-    seen = {file.resolve()}
-    while "extends" in doc:
-        base = doc.pop("extends")
-        bf = (file.parent / str(base)) if not Path(str(base)).is_absolute() else Path(str(base))
-        if not bf.exists() and Path(str(base)).exists():
-            bf = Path(str(base))
-        if not bf.exists():
-            raise SpecError(f"mission: {file}: extends: mission file {base!r} not found")
-        if bf.resolve() in seen:
-            raise SpecError(f"mission: {file}: extends: cycle through {bf}")
-        seen.add(bf.resolve())
-        doc = merge(read(bf), doc)
+    try:
+        doc = read_mission_document(file)
+    except MissionError as e:
+        raise SpecError(f"mission: {' '.join(str(e).split())}") from None
     doc.setdefault("name", file.stem)
     return doc
 
