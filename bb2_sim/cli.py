@@ -313,16 +313,32 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
     return 1 if res.error is not None else 0
 
 
-def _spectrum_peak_period(eta, dt: float) -> float:
-    """Tp of a record: the period of the peak of its Welch spectrum (Hann, 50 % overlap, >= 8 segments)."""
+WELCH_TP_SEGMENT_PERIODS = 10.0
+"""How many peak periods a Welch segment must span for the record's Tp to be said without a caveat: the spectrum's
+bins are 1/segment apart, so its peak period is resolved to about Tp / segment (10 %: ten periods)."""
+
+
+def _spectrum_peak_period(eta, dt: float) -> tuple[float, float]:
+    """Tp of a record: the period of the peak of its Welch spectrum (Hann, 50 % overlap, >= 8 segments), and the
+    length of its segments (s), which bounds how finely that peak is resolved."""
     import numpy as np
     from scipy.signal import welch
 
     n = len(eta)
-    nper = int(2 ** max(4, math.floor(math.log2(max(n // 4, 16)))))
-    f, S = welch(np.asarray(eta) - np.mean(eta), fs=1.0 / dt, nperseg=min(nper, n))
+    nper = min(int(2 ** max(4, math.floor(math.log2(max(n // 4, 16))))), n)
+    f, S = welch(np.asarray(eta) - np.mean(eta), fs=1.0 / dt, nperseg=nper)
     k = int(np.argmax(S[1:])) + 1
-    return 1.0 / f[k] if f[k] > 0 else math.inf
+    return (1.0 / f[k] if f[k] > 0 else math.inf), nper * dt
+
+
+def _welch_caveat(tp_s: float, segment_s: float, duration_s: float) -> str:
+    """'' or why a record's Welch Tp is coarse: its segments hold fewer than ``WELCH_TP_SEGMENT_PERIODS`` peak
+    periods ``tp_s`` (the sea's own, the best known)."""
+    if not (math.isfinite(tp_s) and math.isfinite(segment_s)) or segment_s >= WELCH_TP_SEGMENT_PERIODS * tp_s:
+        return ""
+    need = duration_s * WELCH_TP_SEGMENT_PERIODS * tp_s / segment_s
+    return (f"; coarse: its segments of {segment_s:.3g} s hold {segment_s / tp_s:.2g} peak periods of "
+            f"{tp_s:.3g} s, a record of about {math.ceil(need / 10) * 10:.0f} s resolves Tp to 10 %")
 
 
 def components_peak_period(comps) -> float:
@@ -407,10 +423,11 @@ def run_sea_cli(a: argparse.Namespace) -> int:
     n_c = 0 if comps is None else len(comps)
     print(f"  realisation: Hs = {4.0 * math.sqrt(m0):.4g} m (4 sqrt(m0) of its {n_c} components; "
           f"of the record: {hs_rec:.4g} m)")
-    tp_rec = _spectrum_peak_period(eta, a.dt) if hs_rec > 0 and n > 32 else math.nan
+    tp_rec, segment_s = _spectrum_peak_period(eta, a.dt) if hs_rec > 0 and n > 32 else (math.nan, math.nan)
     tp = components_peak_period(comps) if comps is not None and m0 > 0 else math.nan
+    caveat = _welch_caveat(tp if math.isfinite(tp) else tp_rec, segment_s, float(t[-1]))
     print(f"  realisation: Tp = {tp:.4g} s (peak of its components' energy over omega; "
-          f"of the record's Welch spectrum: {tp_rec:.4g} s)")
+          f"of the record's Welch spectrum: {tp_rec:.4g} s{caveat})")
     print(f"  record: {a.out} ({n} samples, t = 0..{t[-1]:g} s every {a.dt:g} s at x, y = {x:g}, {y:g} m)")
     return 0
 

@@ -168,6 +168,24 @@ def test_sea_command_writes_the_elevation_record_and_prints_hs_tp(tmp_path):
     assert _read(out2)[1] != rows
 
 
+@pytest.mark.parametrize("duration, coarse", [(10, True), (100, True), (600, False)])
+def test_sea_command_says_when_the_records_welch_tp_is_coarse(tmp_path, duration, coarse):
+    """A record's Welch Tp is resolved to about Tp / segment: a 10-s record's says 1.6 s for an 8-s sea.  Said as
+    coarse, with the record length that resolves it, while its segments hold fewer than ten peak periods."""
+    import re
+
+    p = run("sea", "--spectrum", "jonswap", "--hs", "2", "--tp", "8", "--duration", str(duration),
+            "--out", str(tmp_path / "eta.csv"))
+    assert p.returncode == 0, p.stderr
+    line = next(ln for ln in p.stdout.splitlines() if "Welch" in ln)
+    assert ("coarse" in line) == coarse, line
+    if coarse:
+        need = float(re.search(r"a record of about ([0-9]+) s resolves Tp to 10 %", line).group(1))
+        assert need > duration
+        segment = float(re.search(r"its segments of ([0-9.]+) s hold", line).group(1))
+        assert segment < 10 * 8
+
+
 def test_sea_command_regular_wave_is_the_cosine(tmp_path):
     import math
     out = tmp_path / "reg.csv"
