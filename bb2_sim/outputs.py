@@ -69,19 +69,28 @@ def os_error_line(exc: BaseException, path: str | os.PathLike | None = None) -> 
     return f"{type(exc).__name__}: {exc}"
 
 
-def _probe_write(folder: Path) -> None:
-    """Create, write (and sync) and remove a small file in ``folder``: proves the folder takes data."""
+def _probe_write(folder: Path, target: Path | None = None) -> None:
+    """Create, write (and sync) and remove a small file in ``folder``: proves the folder takes data.  ``target``:
+    the file or folder to be written, when ``folder`` is only the nearest one of its folders that exists (named
+    in the message: ``/proc`` refuses ``/proc/x`` with 'No such file or directory', which alone misleads)."""
     probe = folder / f".bb2_write_probe_{os.getpid()}_{time.monotonic_ns()}"
+
+    def refused(exc: OSError) -> OutputError:
+        if target is not None and target != folder:
+            which = "its folder" if target.parent == folder else "its nearest existing folder"
+            return OutputError(f"cannot write {target}: {which} {folder} takes no files ({exc.strerror or exc})")
+        return OutputError(f"cannot write into {folder}: {exc.strerror or exc}")
+
     try:
         fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     except OSError as exc:
-        raise OutputError(f"cannot write into {folder}: {exc.strerror or exc}") from None
+        raise refused(exc) from None
     try:
         try:
             os.write(fd, b"\0" * _PROBE_BYTES)
             os.fsync(fd)
         except OSError as exc:
-            raise OutputError(f"cannot write into {folder}: {exc.strerror or exc}") from None
+            raise refused(exc) from None
     finally:
         os.close(fd)
         try:
@@ -124,7 +133,7 @@ def check_output_file(path: str | os.PathLike, *, overwrite: bool = False, what:
         folder = folder.parent
     if not folder.is_dir():
         raise OutputError(f"cannot write {what} {p}: {folder} is not a directory")
-    _probe_write(folder)
+    _probe_write(folder, p)
     return p
 
 

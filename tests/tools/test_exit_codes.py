@@ -122,6 +122,17 @@ def test_check_output_file_refuses_existing_and_directories(tmp_path):
         O.check_output_file(tmp_path / "a")
 
 
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs procfs: a folder that refuses new files")
+@pytest.mark.parametrize("target, which", [("x/sub/a.csv", "its nearest existing folder /proc"),
+                                           ("x.csv", "its folder /proc")])
+def test_an_output_under_a_folder_that_takes_no_files_names_the_file_and_the_folder(target, which):
+    """/proc refuses a new file with 'No such file or directory': said of /proc alone, it read as if /proc were
+    missing.  The message names the file asked for, and the folder that refused it."""
+    with pytest.raises(O.OutputError) as e:
+        O.check_output_file(Path("/proc") / target)
+    assert str(e.value) == f"cannot write /proc/{target}: {which} takes no files (No such file or directory)"
+
+
 @needs_unshare
 @pytest.mark.parametrize("state", ["ro", "full"])
 def test_check_writable_dir_fails_now_on_read_only_and_full_devices(tmp_path, state):
