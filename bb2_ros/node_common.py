@@ -716,8 +716,9 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
     argv)``, built in order; rclpy is initialised with ``init_args``.  ``composed``: each node reads the ROS
     arguments of its own ``argv`` only (:func:`node_options`).  Spins until SIGINT/SIGTERM or until any node is
     ``done``; the exit status is the worst of the nodes' (2 > 1 > 0).  A node that cannot be built stops the
-    process before it spins (exit 2, one line naming the node), and so does a domain whose discovery port another
-    socket holds unshared (:func:`bb2_ros.discovery_port.discovery_blocked`: no node there would hear another)."""
+    process before it spins (exit 2, one line naming the node), and a domain whose discovery port another socket
+    holds unshared (:func:`bb2_ros.discovery_port.discovery_blocked`: no node there would hear another) stops it
+    before any node is built (no node says it is up there)."""
     from bb2_msgs_py.ros_env import ros_environment_or_error
 
     if (bad := ros_environment_or_error(process)) is not None:  # called directly from the venv: find ROS itself
@@ -737,6 +738,10 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
     shells: list[Any] = []
     code = EXIT_OK
     try:
+        # before any node exists: deaf, it would wait for what never comes, and should not say it is up first
+        if deaf := discovery_blocked(os.environ, rclpy.get_default_context().get_domain_id()):
+            _error(process, deaf)
+            return EXIT_BAD_INPUT
         for name, factory, argv in nodes:
             _node_argv = list(argv)
             _node_options = ({"cli_args": ["--ros-args", *ros_arguments(argv)], "use_global_arguments": False}
@@ -748,9 +753,6 @@ def run_nodes(process: str, nodes: Sequence[tuple[str, Callable[[list[str]], Any
                 return EXIT_BAD_INPUT
             finally:
                 _node_options = {}
-        if shells and (deaf := discovery_blocked(os.environ, _node_of(shells[0]).context.get_domain_id())):
-            _error(process, deaf)  # it would run and hear no one: say so and stop
-            return EXIT_BAD_INPUT
         executor = make_executor()
         for shell in shells:
             executor.add_node(_node_of(shell))

@@ -110,8 +110,9 @@ def test_a_recorder_whose_discovery_port_is_taken_says_so_and_records_nothing_un
 
 
 def test_a_graph_node_whose_discovery_port_is_taken_says_so_and_stops():
-    """Every node process (``node_common.run_nodes``) checks its domain once its nodes exist: deaf, it would wait
-    for commands or a state that never come (the simulator in lockstep at its first state)."""
+    """Every node process (``node_common.run_nodes``) checks its domain before it builds its nodes: deaf, it would
+    wait for commands or a state that never come (the simulator in lockstep at its first state); and no node says
+    it is up first (the simulator logged "simulator up" before it refused)."""
     from bb2_ros.discovery_port import discovery_multicast_port
     from rosenv import spawn_node
 
@@ -126,5 +127,6 @@ def test_a_graph_node_whose_discovery_port_is_taken_says_so_and_stops():
             assert len(said) == 1 and said[0].startswith(
                 f"{process}: error: ROS domain {d}'s discovery port: UDP port {discovery_multicast_port(d)} is held "
                 f"by pid {os.getpid()} ("), out[-2000:]
+            assert " up" not in out and "up:" not in out, out[-2000:]
     finally:
         plain.close()
