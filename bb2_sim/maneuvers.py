@@ -84,6 +84,16 @@ class ManeuverSettings:
     substeps: int = 1             # ROM ode3 steps per 0.05 s step (1: the authors'; bb2_sim.integrator)
 
     @property
+    def zigzag(self) -> bool:
+        """A zig-zag on either channel (its amplitude and check angle are read)."""
+        return "zigzag" in (self.vertical, self.horizontal)
+
+    @property
+    def imposed(self) -> bool:
+        """Every plane imposed (both channels ``imposed``: ``planes_deg`` is read)."""
+        return self.vertical == "imposed" and self.horizontal == "imposed"
+
+    @property
     def rps_command(self) -> float:
         """Propeller command: the given rps, else the authors' rule n = U/4."""
         if self.rps is not None:
@@ -172,9 +182,8 @@ def inapplicable_settings(s: ManeuverSettings, given: Iterable[str]) -> list[str
     the order given: a rudder for a zig-zag, an amplitude for a turning circle, imposed planes for anything but
     ``open-loop``, a heading reference without the heading autopilot, a depth reference without the depth PID.
     They would be ignored without a word; the CLIs refuse them."""
-    zigzag = "zigzag" in (s.vertical, s.horizontal)
-    reads = {"rudder_deg": s.horizontal == "rudder", "amplitude_deg": zigzag, "check_deg": zigzag,
-             "planes_deg": s.vertical == "imposed" and s.horizontal == "imposed",
+    reads = {"rudder_deg": s.horizontal == "rudder", "amplitude_deg": s.zigzag, "check_deg": s.zigzag,
+             "planes_deg": s.imposed,
              "sail_planes": s.vertical == "zigzag", "heading_ref_deg": s.horizontal == "pd",
              "depth_ref": s.vertical == "pid" or (s.vertical == "zigzag" and s.sail_planes == "pid")}
     return [k for k in given if not reads.get(k, True)]
@@ -197,10 +206,10 @@ def saturation_warning(s: ManeuverSettings, plane_limit_deg: float) -> str:
     asked: list[tuple[str, float]] = []  # (the setting as given, the largest plane deflection it asks for)
     if s.horizontal == "rudder":
         asked.append((f"its rudder of {s.rudder_deg:g} deg", _largest(plane_angles_deg(0.0, s.rudder_deg))))
-    if "zigzag" in (s.horizontal, s.vertical):
+    if s.zigzag:
         dv, dh = (s.amplitude_deg, 0.0) if s.vertical == "zigzag" else (0.0, s.amplitude_deg)
         asked.append((f"its zigzag amplitude of {s.amplitude_deg:g} deg", _largest(plane_angles_deg(dv, dh))))
-    if s.vertical == "imposed" and s.horizontal == "imposed":
+    if s.imposed:
         asked.append((f"its imposed planes {','.join(f'{d:g}' for d in s.planes_deg)} deg",
                       _largest(s.planes_deg)))
     over = [(what, deg) for what, deg in asked if deg > plane_limit_deg + 1e-9]
@@ -249,7 +258,7 @@ def validate(s: ManeuverSettings) -> None:
         raise ManeuverError(f"propeller must be 'constant' or 'speed-pi', got {s.propeller!r}")
     if s.sail_planes not in ("zero", "pid"):
         raise ManeuverError(f"sail planes must be 'pid' or 'zero', got {s.sail_planes!r}")
-    if "zigzag" in (s.vertical, s.horizontal) and (s.amplitude_deg <= 0 or s.check_deg <= 0):
+    if s.zigzag and (s.amplitude_deg <= 0 or s.check_deg <= 0):
         raise ManeuverError("zig-zags need --amplitude-deg > 0 and --check-deg > 0")
     if s.environment is not None and s.sea_state not in (0, None) and not s.environment.sea.authors_table:
         raise ManeuverError("give either a sea state (the authors' table) or a spectrum sea, not both")
@@ -279,7 +288,7 @@ class ManeuverCommander:
     def __init__(self, s: ManeuverSettings):
         self.s = s
         self.autopilot = V12Autopilot(z_ref=s.z_ref, psi_ref=math.radians(s.heading_ref_deg))
-        self.zigzag = ZigZag(s.amplitude_deg, s.check_deg) if "zigzag" in (s.vertical, s.horizontal) else None
+        self.zigzag = ZigZag(s.amplitude_deg, s.check_deg) if s.zigzag else None
         self.speed_pi = None
         if s.propeller == "speed-pi":
             from .profiles import get_profile
@@ -289,7 +298,7 @@ class ManeuverCommander:
     def step(self, t: float, x: np.ndarray) -> tuple[np.ndarray, float]:
         s = self.s
         rps = self.speed_pi.step(x[6]) if self.speed_pi else s.rps_command
-        if s.vertical == "imposed" and s.horizontal == "imposed":
+        if s.imposed:
             return np.array(s.planes_deg, dtype=float), rps
         dv_pid, dh_pd = self.autopilot.step(x[2], x[4], x[5])
         dv, dh = dv_pid, dh_pd

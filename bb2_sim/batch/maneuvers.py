@@ -58,7 +58,7 @@ class BatchManeuverCommander:
         self._hz = np.flatnonzero([s.horizontal == "zigzag" for s in S])
         self._rudder = np.flatnonzero([s.horizontal == "rudder" for s in S])
         self._rudder_dh = arr([-s.rudder_deg for s in S])[self._rudder]
-        self._imposed = arr([s.vertical == "imposed" and s.horizontal == "imposed" for s in S])
+        self._imposed = arr([s.imposed for s in S])
         self._imposed_planes = arr([s.planes_deg for s in S], dtype=float)
         self._sail_pid = arr([s.sail_planes == "pid" for s in S])[self._vz]
         self._rps_const = arr([s.rps_command for s in S], dtype=float)
@@ -202,7 +202,7 @@ def run_maneuvers_batch(settings: Sequence[ManeuverSettings], model: BB2Model | 
     for b, s in enumerate(S):
         arr = traj[b][:logged[b]]
         reversals = [t for t in cmd.zigzag.reversals[b] if t <= last_t[b]] \
-            if "zigzag" in (s.vertical, s.horizontal) else []
+            if s.zigzag else []
         out.append(ManeuverResult(s, {c: arr[:, i] for i, c in enumerate(OUTPUT_COLUMNS)}, errors.get(b),
                                   reversals, wall))
     return out
