@@ -194,11 +194,10 @@ def add_sea_parser(sub) -> argparse.ArgumentParser:
 
 
 def current_block_from_args(a: argparse.Namespace) -> dict | None:
-    """The ``current:`` mapping of the current options (None if none was given)."""
-    if a.current_mps is None and a.current_heading_deg is None:
-        return None
-    return {"speed_mps": a.current_mps if a.current_mps is not None else 0.0,
-            "heading_deg": a.current_heading_deg if a.current_heading_deg is not None else 0.0}
+    """The ``current:`` mapping of the current options (None if none was given; a heading alone is refused by
+    :func:`bb2_sim.environment.current_from_mapping`, as in a mission file)."""
+    block = {k: v for k, v in (("speed_mps", a.current_mps), ("heading_deg", a.current_heading_deg)) if v is not None}
+    return block or None
 
 
 def _fmt(value) -> str:

@@ -349,6 +349,9 @@ def current_from_mapping(doc: Mapping[str, Any] | None, *, where: str = "current
     bad = sorted(set(doc) - set(CURRENT_KEYS))
     if bad:
         raise SeaInputError(f"unknown key(s) in {where}: {bad}; allowed: {list(CURRENT_KEYS)}")
+    if doc and "speed_mps" not in doc:  # a heading or profile of no current: a forgotten speed, not a calm
+        raise SeaInputError(f"{where}: {', '.join(sorted(doc))} without speed_mps: give the current's speed (m/s, "
+                            "0 for none)")
     speed = _num(doc.get("speed_mps", 0.0), f"{where}.speed_mps", nonneg=True)
     heading = _num(doc.get("heading_deg", 0.0), f"{where}.heading_deg")
     p = doc.get("profile")

@@ -306,6 +306,7 @@ def test_maneuver_sea_state_table_elevation_column(tmp_path):
     (["--components", "/no/such.csv"], "not found"),
     (["--current-mps", "-1"], "current"),
     (["--current-mps", "1", "--current-heading-deg", "inf"], "finite"),
+    (["--current-heading-deg", "90"], "heading_deg without speed_mps"),   # it flew no current without a word
     (["--hs", "3"], "need a spectrum"),
 ])
 def test_maneuver_bad_sea_input_exit_2(args, needle):

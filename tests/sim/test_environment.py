@@ -88,6 +88,8 @@ def test_bad_sea_blocks_one_message(block, needle):
     ({"speed_mps": 1, "profile": {"depths_m": [50, 0], "factors": [1, 1]}}, "increasing"),
     ({"speed_mps": 1, "profile": {"water_depth_m": 0}}, "water_depth_m must be > 0"),
     ({"speed_mps": 1, "profile": {"shape": "log"}}, "profile must be"),
+    ({"heading_deg": 90}, r"current: heading_deg without speed_mps: give the current's speed \(m/s, 0 for none\)"),
+    ({"heading_deg": 90, "profile": {"water_depth_m": 200}}, "heading_deg, profile without speed_mps"),
 ])
 def test_bad_current_blocks_one_message(block, needle):
     with pytest.raises(SeaInputError, match=needle):
