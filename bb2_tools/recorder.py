@@ -756,10 +756,15 @@ def _main(argv: Sequence[str] | None) -> int:
                   f"recording {', '.join(GLOBAL_TOPICS)} (every boat's statuses; each boat's are in its bb2/status)",
                   flush=True)
         status_period = float(par["status_period_s"])
-        if chunk <= 0 or depth <= 0 or flush < 0 or not 0 <= batch <= 1 or not (math.isfinite(status_period)
-                                                                                and status_period >= 0):
-            raise ContractError("chunk size and queue depth must be > 0, flush period >= 0, batch period in [0, 1] s, "
-                                f"status_period_s >= 0 (got {par['status_period_s']!r})")
+        for what, value, ok, rule in (
+                ("--chunk-size (parameter chunk_size)", chunk, chunk > 0, "> 0 bytes"),
+                ("--depth (parameter queue_depth)", depth, depth > 0, "> 0"),
+                ("--flush-period (parameter flush_period_s)", flush, math.isfinite(flush) and flush >= 0, ">= 0 s"),
+                ("--batch-period (parameter batch_period_s)", batch, 0 <= batch <= 1, "in [0, 1] s"),
+                ("parameter status_period_s", status_period, math.isfinite(status_period) and status_period >= 0,
+                 ">= 0 s")):
+            if not ok:
+                raise ContractError(f"{what} must be {rule}, got {value!r}")
         if par["storage_id"] != "mcap":
             raise ContractError(f"parameter 'storage_id' must be mcap, got {par['storage_id']!r}")
         if par["compression"] not in ("zstd", "lz4", ""):

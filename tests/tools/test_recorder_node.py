@@ -81,16 +81,28 @@ def test_recorder_parameters_and_parameter_services(tmp_path):
 
 def test_recorder_refuses_bad_storage_parameters_with_one_line(tmp_path):
     for args, why in ((["-p", "storage_id:=sqlite3"], "storage_id"), (["-p", "compression:=gzip"], "compression"),
-                      (["-p", "batch_period_s:=5.0"], "batch period"), (["-p", "topics:=[/bb2/nothing]"],
-                                                                        "matches no contract topic"),
+                      (["-p", "batch_period_s:=5.0"], "--batch-period (parameter batch_period_s) must be in [0, 1] s, "
+                                                        "got 5.0"),
+                      (["-p", "topics:=[/bb2/nothing]"], "matches no contract topic"),
                       (["-p", "boats:=[boat1,1boat]"], "a boat's namespace must be a ROS 2 namespace"),
                       (["-p", "boats:=[boat1,boat1]"], "the boats must be distinct"),
-                      (["-p", "status_period_s:=-1.0"], "status_period_s")):
+                      # each value is named with its option and parameter (one message named them all, and
+                      # "got" the status period whichever was wrong)
+                      (["-p", "status_period_s:=-1.0"], "parameter status_period_s must be >= 0 s, got -1.0"),
+                      (["-p", "chunk_size:=0"], "--chunk-size (parameter chunk_size) must be > 0 bytes, got 0"),
+                      (["-p", "queue_depth:=-3"], "--depth (parameter queue_depth) must be > 0, got -3"),
+                      (["-p", "flush_period_s:=-1.0"], "--flush-period (parameter flush_period_s) must be >= 0 s, "
+                                                       "got -1.0")):
         r = subprocess.run([sys.executable, "-m", "bb2_tools.recorder", "--ros-args",
                             "-p", f"bag_directory:={tmp_path / 'b'}", *args], cwd=tmp_path, env=ros_env(claimed_domain()),
                            capture_output=True, text=True, timeout=60)
         assert r.returncode == 2 and why in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
         assert not (tmp_path / "b").exists()
+    r = subprocess.run([sys.executable, "-m", "bb2_tools.recorder", "--out", str(tmp_path / "b"), "--flush-period",
+                        "inf"], cwd=tmp_path, env=ros_env(claimed_domain()), capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and r.stderr.strip() == \
+        "bb2-record: error: --flush-period (parameter flush_period_s) must be >= 0 s, got inf", r.stderr
+    assert not (tmp_path / "b").exists()
 
 
 def test_the_recorder_says_its_own_status_on_the_boats_sim_time_and_records_it(tmp_path):
