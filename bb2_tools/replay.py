@@ -571,6 +571,13 @@ def open_loop(bag: str | os.PathLike | BagReader, mission_file: str | os.PathLik
 
 
 # ----------------------------------------------------------------------------------------- CLI
+REPLAY_ONLY = frozenset({"--rate", "--topics", "--pause", "--loop", "--domain-id", "--wait-for-readers", "--delay",
+                         "--no-clock"})
+"""Options of the replay that ``--open-loop`` (no ROS) does not read: refused with it."""
+OPEN_LOOP_ONLY = frozenset({"--mission", "--max-deviation"})
+"""Options of ``--open-loop`` that the replay does not read: refused without it."""
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="bb2-replay", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -639,8 +646,19 @@ def _main(argv: Sequence[str] | None) -> int:
         return bad
     if not (args.start_offset >= 0 and math.isfinite(args.start_offset)):
         return _error(f"--start-offset must be >= 0 s, got {args.start_offset}")
+    defaults = _parser().parse_args([str(args.bag)])
+    other = sorted(o for o in (REPLAY_ONLY if args.open_loop else OPEN_LOOP_ONLY)   # set to other than the default
+                   if getattr(args, o[2:].replace("-", "_")) != getattr(defaults, o[2:].replace("-", "_")))
+    if other:  # it would be ignored without a word
+        return _error(f"{', '.join(other)} {'do' if len(other) > 1 else 'does'} not apply "
+                      + ("to --open-loop (no ROS: nothing is republished)" if args.open_loop else
+                         "without --open-loop (the replay republishes the bag: no simulator runs)"))
+    if args.max_deviation is not None and not (args.max_deviation >= 0 and math.isfinite(args.max_deviation)):
+        return _error(f"--max-deviation must be >= 0 m and finite, got {args.max_deviation}")
     if args.open_loop:
         return _run_open_loop(args)
+    if not (args.wait_for_readers >= 0 and math.isfinite(args.wait_for_readers)):
+        return _error(f"--wait-for-readers must be >= 0 s and finite, got {args.wait_for_readers}")
     if not (args.rate > 0 and math.isfinite(args.rate)):
         return _error(f"--rate must be > 0 and finite, got {args.rate}")
     if args.delay < 0 or not math.isfinite(args.delay):

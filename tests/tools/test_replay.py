@@ -127,6 +127,24 @@ def test_bad_input_is_one_clear_error(recorded, tmp_path, capsys):
     assert "--start-offset 1e+09 s is past the last recorded state" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("args, said", [
+    (["--wait-for-readers", "-1"], "--wait-for-readers must be >= 0 s and finite, got -1.0"),
+    (["--open-loop", "--max-deviation", "-1"], "--max-deviation must be >= 0 m and finite, got -1.0"),
+    (["--open-loop", "--max-deviation", "nan"], "--max-deviation must be >= 0 m and finite, got nan"),
+    (["--open-loop", "--rate", "2"], "--rate does not apply to --open-loop (no ROS: nothing is republished)"),
+    (["--open-loop", "--loop", "--pause"], "--loop, --pause do not apply to --open-loop"),
+    (["--max-dev", "1"], "--max-deviation does not apply without --open-loop (the replay republishes the bag"),
+    (["--mission", "canyon"], "--mission does not apply without --open-loop"),
+])
+def test_an_option_the_mode_does_not_read_or_a_bad_bound_is_refused(recorded, capsys, args, said):
+    """Each was ignored without a word (a replay with --max-deviation checked nothing; --open-loop --rate 2 ran at
+    no rate), or a negative bound failed every open-loop run ('deviation 0 exceeds -1')."""
+    bag, _, _ = recorded
+    assert main([str(bag), *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("bb2-replay: error: ") and said in err[0], err
+
+
 # ----------------------------------------------------------------------------------------- open loop
 def test_open_loop_reproduces_a_lockstep_recording_exactly(recorded, capsys):
     bag, mission, n = recorded
