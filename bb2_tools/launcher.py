@@ -76,7 +76,7 @@ from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, PUBLISHED_DIR_ENV, R
 from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE, RECORDER_STATUS_NAME, status_source
 from bb2_tools.graph_monitor import END_AT, GraphMonitor, domain_monitor, format_status
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
-                                  Supervisor, parse_restart_policies)
+                                  Supervisor, parse_restart_policies, uses_default_max)
 
 RECORDER_NODE_NAME = "recorder"  # bb2_tools.recorder.NODE_NAME
 
@@ -740,7 +740,7 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
                    help="per-node policy when a node dies: stop (default), restart[:N], ignore; "
                         "NODE may be 'all'")
     p.add_argument("--max-restarts", type=int, default=DEFAULT_MAX_RESTARTS,
-                   help=f"default N for 'restart' (default {DEFAULT_MAX_RESTARTS})")
+                   help=f"N for a --restart NODE=restart without its own :N (default {DEFAULT_MAX_RESTARTS}; >= 0)")
     p.add_argument("--end-at", choices=END_AT, default="either",
                    help="the mission is over when the simulator reports the end of the mission duration, "
                         "when the progress reaches 1 (path flown), or either (default)")
@@ -784,6 +784,11 @@ def check_run_options(args: argparse.Namespace) -> None:
         raise LaunchError(f"--status-period must be > 0 and finite, got {args.status_period}")
     if not (args.ready_timeout > 0 and math.isfinite(args.ready_timeout)):
         raise LaunchError(f"--ready-timeout must be > 0 and finite, got {args.ready_timeout}")
+    if args.max_restarts < 0:
+        raise LaunchError(f"--max-restarts must be >= 0, got {args.max_restarts}")
+    if args.max_restarts != DEFAULT_MAX_RESTARTS and not uses_default_max(args.restart):
+        raise LaunchError(f"--max-restarts {args.max_restarts} applies to no node: it counts the restarts of a "
+                          "--restart NODE=restart without a count of its own (NODE=restart:N)")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

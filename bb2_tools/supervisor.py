@@ -50,7 +50,10 @@ class RestartPolicy:
 
 def parse_restart_policies(specs: Iterable[str], known: Iterable[str],
                            default_max: int = DEFAULT_MAX_RESTARTS) -> dict[str, RestartPolicy]:
-    """Parse ``["simulator=stop,recorder=restart:5", "mixer=ignore"]`` into policies per node."""
+    """Parse ``["simulator=stop,recorder=restart:5", "mixer=ignore"]`` into policies per node; ``default_max``: the
+    count of a ``restart`` without one (``--max-restarts``)."""
+    if default_max < 0:
+        raise LaunchError(f"--max-restarts must be >= 0, got {default_max}")
     known = list(known)
     out: dict[str, RestartPolicy] = {}
     for spec in specs:
@@ -71,6 +74,12 @@ def parse_restart_policies(specs: Iterable[str], known: Iterable[str],
             for target in (known if name == "all" else [name]):
                 out[target] = policy
     return out
+
+
+def uses_default_max(specs: Iterable[str]) -> bool:
+    """Whether any ``--restart`` item is a ``restart`` without its own count (the one ``--max-restarts`` sets)."""
+    return any(item.partition("=")[2].strip() == "restart"
+               for spec in specs for item in filter(None, (s.strip() for s in spec.split(","))))
 
 
 # ============================================================================ supervision

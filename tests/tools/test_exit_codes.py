@@ -166,11 +166,21 @@ def test_launch_refuses_bad_input_with_one_line(tmp_path):
         (mission, "--bag-dir", str(tmp_path), "--stall-timeout", "nan"): "--stall-timeout",
         (mission, "--bag-dir", str(tmp_path), "--timeout", "inf"): "--timeout",
         (mission, "--bag-dir", str(tmp_path), "--status-period", "0"): "--status-period",
+        # --max-restarts counts only a NODE=restart without its own count: alone it did nothing, without a word
+        (mission, "--bag-dir", str(tmp_path), "--max-restarts", "-1"): "--max-restarts must be >= 0, got -1",
+        (mission, "--bag-dir", str(tmp_path), "--max-restarts", "5"): "--max-restarts 5 applies to no node",
+        (mission, "--bag-dir", str(tmp_path), "--max-restarts", "5", "--restart", "mixer=restart:2"):
+            "--max-restarts 5 applies to no node",
     }
     for args, text in cases.items():
         p = bb2("bb2-launch", *args, timeout=120)
         assert p.returncode == 2, (args, p.stderr)
         assert text in one_error_line(p.stderr, "bb2-launch"), (args, p.stderr)
+    fleet = subprocess.run([PY, "-m", "bb2_tools.launch_cli", str(REPO / "missions" / "fleets" / "canyon_pair.yaml"),
+                            "--bag-dir", str(tmp_path), "--max-restarts", "5"], capture_output=True, text=True,
+                           timeout=120, cwd=tmp_path)   # a fleet's launch says it once, before any boat starts
+    assert fleet.returncode == 2 and "--max-restarts 5 applies to no node" in one_error_line(fleet.stderr,
+                                                                                            "bb2-launch"), fleet.stderr
     assert sorted(tmp_path.iterdir()) == [bad]   # nothing claimed for a refused launch
 
 

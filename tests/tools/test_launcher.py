@@ -127,9 +127,13 @@ def test_restart_policies_parse_and_reject_bad_input():
     assert pol["recorder"] == S.RestartPolicy("restart", 5)
     assert pol["simulator"].action == "stop" and pol["mixer"].action == "ignore"
     assert S.parse_restart_policies(["all=restart"], nodes, default_max=2)["mixer"] == S.RestartPolicy("restart", 2)
-    for bad in ("simulator", "bogus=stop", "mixer=explode", "mixer=ignore:3", "mixer=restart:x"):
+    for bad in ("simulator", "bogus=stop", "mixer=explode", "mixer=ignore:3", "mixer=restart:x", "mixer=restart:-1"):
         with pytest.raises(S.LaunchError):
             S.parse_restart_policies([bad], nodes)
+    with pytest.raises(S.LaunchError, match="--max-restarts must be >= 0"):
+        S.parse_restart_policies([], nodes, default_max=-1)
+    assert S.uses_default_max(["simulator=stop, mixer=restart"]) and not S.uses_default_max(["mixer=restart:2"])
+    assert not S.uses_default_max([]) and not S.uses_default_max(["all=ignore"])
 
 
 def test_python_runner_builds_entry_point_commands():
