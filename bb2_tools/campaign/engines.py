@@ -172,6 +172,15 @@ class RayEngine:
         and exit 2, not a driver waiting on Ray's connection retries."""
         self._connect()
 
+    def _init_address(self) -> str:
+        """What ``ray.init`` is given: ``--address`` as given; without one, ``RAY_ADDRESS`` when it is set (Ray's
+        own convention, e.g. inside a Ray job), else ``local``: a Ray instance started for this driver.  (Left to
+        Ray, no address also means the last cluster ``ray start`` ran on this machine, whose address file outlives
+        it: the driver then retried a stopped cluster for minutes without a word.)"""
+        if self.address:
+            return str(self.address)
+        return os.environ.get("RAY_ADDRESS", "") or "local"
+
     def _probe_address(self) -> None:
         """A ``HOST:PORT`` (or ``ray://HOST:PORT``) that no process listens on is said at once: Ray itself retries
         for minutes.  ``auto`` is probed where Ray would look (``RAY_ADDRESS``, else the address file of the last
@@ -180,14 +189,14 @@ class RayEngine:
 
         from bb2_tools.campaign.errors import SpecError
 
-        addr = str(self.address or "")
+        addr = self._init_address()
         hostport = addr[len("ray://"):] if addr.startswith("ray://") else addr
-        found = ""
+        found = " (from RAY_ADDRESS)" if not self.address and addr != "local" else ""
         if hostport == "auto":  # where Ray would look: RAY_ADDRESS, else the last cluster started on this machine
             env = os.environ.get("RAY_ADDRESS", "")
             hostport = env or _last_ray_cluster()
             found = f" (auto: {hostport}, {'from RAY_ADDRESS' if env else 'the last Ray cluster started here'})"
-        if not hostport or hostport == "auto":
+        if not hostport or hostport in ("auto", "local"):
             return
         host, sep, port = hostport.rpartition(":")
         if not sep or not port.isdigit():
@@ -212,15 +221,17 @@ class RayEngine:
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
         if not ray.is_initialized():
             self._probe_address()
-            kw: dict[str, Any] = {"log_to_driver": False, "logging_level": logging.WARNING,
-                                  "include_dashboard": False} if self.address is None else \
-                {"log_to_driver": False, "logging_level": logging.WARNING}
-            ray.init(address=self.address, **kw)
+            address = self._init_address()
+            kw: dict[str, Any] = {"log_to_driver": False, "logging_level": logging.WARNING}
+            if address == "local":
+                kw["include_dashboard"] = False
+            ray.init(address=address, **kw)
         self._cpus = int(ray.cluster_resources().get("CPU", 1))
         return ray
 
     def describe(self) -> str:
-        where = self.address or "a local Ray instance"
+        addr = self._init_address()
+        where = "a local Ray instance" if addr == "local" else addr + ("" if self.address else " (RAY_ADDRESS)")
         return f"ray at {where}" + (f", {self._cpus} CPUs" if self._cpus else "")
 
     def run(self, spec: CampaignSpec, indices: Iterable[int], on_row: OnRow, on_tick: OnTick | None = None) -> None:

@@ -227,6 +227,14 @@ def ray_cluster(tmp_path_factory):
     finally:
         for p in reversed(procs):
             _stop(p)
+        # `ray start --head` wrote its address into this machine's Ray address file, which outlives the cluster:
+        # leave no stopped cluster there for a later `ray.init()`
+        current = Path(os.environ.get("RAY_TMPDIR") or os.environ.get("TMPDIR") or "/tmp") / "ray" / "ray_current_cluster"
+        try:
+            if current.read_text().strip().endswith(f":{port}"):
+                current.unlink()
+        except OSError:
+            pass
 
 
 def test_ray_on_a_two_node_local_cluster_gives_the_same_results(spec_file, reference, ray_cluster, tmp_path):
@@ -350,6 +358,43 @@ def test_a_ray_address_nobody_answers_is_said_at_once_before_the_campaign_folder
     monkeypatch.setenv("RAY_ADDRESS", f"127.0.0.1:{dead}")  # where auto looks first
     with pytest.raises(SpecError, match=rf"--address auto \(auto: 127.0.0.1:{dead}, .*\): no Ray cluster answers"):
         RayEngine(address="auto")._probe_address()
+
+
+def test_ray_without_an_address_starts_its_own_instance_whatever_the_last_cluster_left(tmp_path):
+    """``--engine ray`` without ``--address``: a Ray instance started for this driver (RAY_ADDRESS when set).  Left
+    to Ray, no address means the last cluster ``ray start`` ran on this machine too, and its address file outlives
+    it (the two-node test cluster above left one): the driver retried a stopped cluster for minutes, without a
+    word.  Here the machine's address file names a port nobody listens on; the campaign flies on its own."""
+    pytest.importorskip("ray")
+    import tempfile
+
+    from bb2_tools.campaign.engines import RayEngine
+
+    ray_tmp = Path(tempfile.mkdtemp(prefix="r", dir="/tmp"))   # short: Ray's socket paths live below it
+    try:
+        (ray_tmp / "ray").mkdir()
+        (ray_tmp / "ray" / "ray_current_cluster").write_text(f"127.0.0.1:{_free_port()}")
+        f = _write_spec(tmp_path / "s.yaml", {"maneuver": {"name": "turning-circle", "options": {"duration": 3}},
+                                              "samples": 2, "collect": ["initial_speed_m_s"]})
+        env = {**_env(), "RAY_TMPDIR": str(ray_tmp)}
+        env.pop("RAY_ADDRESS", None)
+        r = subprocess.run([str(BIN / "bb2-campaign"), str(f), "--out", str(tmp_path / "o"), "--engine", "ray",
+                            "--workers", "1", "--quiet", "--no-report"], cwd=REPO, env=env, capture_output=True,
+                           text=True, timeout=240)
+        assert r.returncode == 0, r.stdout + r.stderr
+        assert "ray at a local Ray instance" in r.stdout and len(_table(tmp_path / "o")) == 2, r.stdout
+    finally:
+        shutil.rmtree(ray_tmp, ignore_errors=True)
+    old = os.environ.pop("RAY_ADDRESS", None)
+    try:
+        assert RayEngine()._init_address() == "local" and RayEngine(address="auto")._init_address() == "auto"
+        os.environ["RAY_ADDRESS"] = "10.0.0.1:6379"
+        assert RayEngine()._init_address() == "10.0.0.1:6379"
+        assert RayEngine(address="127.0.0.1:1")._init_address() == "127.0.0.1:1"
+    finally:
+        os.environ.pop("RAY_ADDRESS", None)
+        if old is not None:
+            os.environ["RAY_ADDRESS"] = old
 
 
 def test_bad_command_lines_exit_2(tmp_path):
