@@ -463,7 +463,9 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
                 raise AnalysisError(f"maneuver {maneuver!r}: {exc}") from None
             warnings.append(f"maneuver figures of {maneuver!r} not computed: {exc}")
 
-    end = RunEnd("") if maneuver else _run_end(run, tick, mission, probes, cl, hull, warnings)
+    # a maneuver bag has no mission end; a mission's run analysed with a maneuver's figures keeps its own
+    end = RunEnd("") if maneuver and "maneuver" in run.custom_data else \
+        _run_end(run, tick, mission, probes, cl, hull, warnings)
     figures = RunFigures(times=times, path_error=stack_errors, path_error_closest=closest_errors,
                          final_progress=final_progress, clearance=clearance, trajectory=trajectory,
                          commands=commands, real_time_factor=rtf, maneuver=man_figs, end=end,

@@ -488,6 +488,15 @@ def test_report_renders_in_chromium(bags, tmp_path):
 
 
 # ------------------------------------------------------------------------------------------ maneuver
+def test_a_missions_run_with_a_maneuvers_figures_keeps_its_own_end(bags):
+    """--maneuver on a mission's bag (a turn of the path read as a turning circle): the maneuver's figures, and the
+    run's end as the runner gives it (it was dropped, as for a maneuver's bag, which has no mission end)."""
+    bag, runner, _traj = bags["circle"]
+    a = analyze(read_bag(bag), maneuver="turning-circle")
+    assert a.maneuver == "turning-circle" and a.maneuver_figures is not None
+    assert a.figures.end.reason == runner.end_reason.value == "duration"
+
+
 def test_maneuver_figures_from_bag(tmp_path):
     """A turning circle recorded as the simulator would publish it: bb2_sim.metrics figures from the bag."""
     from dataclasses import asdict
@@ -513,6 +522,7 @@ def test_maneuver_figures_from_bag(tmp_path):
     bag.w.close()
     a = analyze(read_bag(tmp_path / "tc"))
     assert a.maneuver == "turning-circle" and a.maneuver_figures is not None
+    assert a.figures.end.reason == ""   # a maneuver's bag: no mission end
     want = figures_for("turning-circle", tr, **asdict(s)).to_dict()
     got = a.maneuver_figures.to_dict()
     assert math.isfinite(want["tactical_diameter_m"])  # the run reaches 180 degrees of heading change
