@@ -191,7 +191,8 @@ class RayEngine:
 
         addr = self._init_address()
         hostport = addr[len("ray://"):] if addr.startswith("ray://") else addr
-        found = " (from RAY_ADDRESS)" if not self.address and addr != "local" else ""
+        given = f"--address {addr}" if self.address else f"RAY_ADDRESS={addr} (no --address)"
+        found = ""
         if hostport == "auto":  # where Ray would look: RAY_ADDRESS, else the last cluster started on this machine
             env = os.environ.get("RAY_ADDRESS", "")
             hostport = env or _last_ray_cluster()
@@ -200,11 +201,11 @@ class RayEngine:
             return
         host, sep, port = hostport.rpartition(":")
         if not sep or not port.isdigit():
-            raise SpecError(f"--address {addr}: expected auto or HOST:PORT (the address `ray start --head` prints)")
+            raise SpecError(f"{given}: expected auto or HOST:PORT (the address `ray start --head` prints)")
         try:
             socket.create_connection((host or "127.0.0.1", int(port)), timeout=ADDRESS_PROBE_TIMEOUT_S).close()
         except OSError as e:
-            raise SpecError(f"--address {addr}{found}: no Ray cluster answers there ({e.strerror or e}); start "
+            raise SpecError(f"{given}{found}: no Ray cluster answers there ({e.strerror or e}); start "
                             f"one with `ray start --head` (it prints its address), or use --address auto on one of "
                             f"its machines") from None
 

@@ -390,6 +390,12 @@ def test_ray_without_an_address_starts_its_own_instance_whatever_the_last_cluste
         assert RayEngine()._init_address() == "local" and RayEngine(address="auto")._init_address() == "auto"
         os.environ["RAY_ADDRESS"] = "10.0.0.1:6379"
         assert RayEngine()._init_address() == "10.0.0.1:6379"
+        from bb2_tools.campaign.errors import SpecError
+
+        dead = _free_port()
+        os.environ["RAY_ADDRESS"] = f"127.0.0.1:{dead}"   # probed as --address would be, and said to be RAY_ADDRESS
+        with pytest.raises(SpecError, match=rf"^RAY_ADDRESS=127.0.0.1:{dead} \(no --address\): no Ray cluster answers"):
+            RayEngine()._probe_address()
         assert RayEngine(address="127.0.0.1:1")._init_address() == "127.0.0.1:1"
     finally:
         os.environ.pop("RAY_ADDRESS", None)
