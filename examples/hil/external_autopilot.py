@@ -78,9 +78,12 @@ def main(argv: list[str] | None = None) -> int:
     from bb2_control.errors import NonFiniteInputError, PathFollowingError
     from bb2_msgs_py import conversions as cv
     from bb2_msgs_py.contract import FRAME_BASE_LINK, frame_prefix, message_class, qos_profile, vehicle_frame
-    from bb2_mission import load_mission, mission_components
+    from bb2_mission import MissionError, load_mission, mission_components
 
-    mission = load_mission(args.mission)
+    try:
+        mission = load_mission(args.mission)
+    except MissionError as exc:   # bad input: one line, exit 2 (not a traceback)
+        p.exit(2, f"{p.prog}: error: {exc}\n")
     parts = mission_components(mission)
     stack = parts.stack
     nav = None

@@ -176,6 +176,20 @@ def main(argv: list[str] | None = None) -> int:
         p.exit(2, f"{p.prog}: error: --domain-id must be in 0..232, got {args.domain_id}\n")
     if not args.mission.is_file():
         p.exit(2, f"{p.prog}: error: mission file {args.mission} does not exist\n")
+    from bb2_mission import MissionError, load_mission
+
+    try:   # before any process starts: the autopilot and the monitor would each stop on it
+        load_mission(args.mission)
+    except MissionError as exc:
+        p.exit(2, f"{p.prog}: error: {exc}\n")
+    if not 0 <= args.autopilot_priority <= 99:   # the autopilot refused it at its start: "did not come up"
+        p.exit(2, f"{p.prog}: error: --autopilot-priority must be in 0..99, got {args.autopilot_priority}\n")
+    if args.sensors is not None:
+        from bb2_sim.sensors import PRESETS
+
+        if args.sensors not in PRESETS and not Path(args.sensors).is_file():
+            p.exit(2, f"{p.prog}: error: --sensors: no suite {args.sensors!r} (one of {', '.join(PRESETS)}, or a "
+                      "suite file)\n")
 
     domain = args.domain_id if args.domain_id is not None else random.randint(100, 230)
     env = dict(os.environ)
@@ -215,9 +229,14 @@ def main(argv: list[str] | None = None) -> int:
                                        *source, "--realtime-priority", str(priority)], env,
                          net.autopilot if net else None)
         procs += [monitor, autopilot]
-        if not (autopilot.wait_for("external autopilot ready", 60) and monitor.wait_for("hil monitor ready", 60)):
-            print("run_hil: the autopilot or the monitor did not come up", file=sys.stderr)
-            return 1
+        for proc, ready in ((autopilot, "external autopilot ready"), (monitor, "hil monitor ready")):
+            if not proc.wait_for(ready, 60):
+                rc = proc.p.poll()
+                said = next((ln for ln in reversed(proc.lines) if ln.strip()), "")
+                print(f"run_hil: the {proc.name} did not come up ("
+                      + (f"it exited with code {rc}: {said}" if rc is not None else "not ready within 60 s") + ")",
+                      file=sys.stderr)
+                return 1
         params = simulator_params(summary_file.with_suffix(".params.yaml"), time_mode=args.mode,
                                   rate_hz=args.rate_hz, duration_s=args.duration,
                                   command_timeout_s=args.command_timeout,

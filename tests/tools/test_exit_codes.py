@@ -440,9 +440,20 @@ def test_node_refuses_an_invalid_command_line_value_after_the_params_file(bad):
     assert "Traceback" not in out
 
 
-def test_run_hil_refuses_a_negative_duration():
+def test_run_hil_refuses_a_negative_duration(tmp_path):
+    """Bad input is one line and exit 2 before any process starts: a priority or sensor suite the autopilot would
+    refuse, or a mission it could not load, came out as "the autopilot or the monitor did not come up"."""
+    bad_mission = tmp_path / "bad.yaml"
+    bad_mission.write_text("path: no_such_path\n")
     for args, text in ((["--duration", "-5"], "--duration must be > 0"), (["--rate-hz", "nan"], "--rate-hz"),
-                       (["--mission", "/nonexistent.yaml"], "does not exist")):
+                       (["--mission", "/nonexistent.yaml"], "does not exist"),
+                       (["--autopilot-priority", "200"], "--autopilot-priority must be in 0..99, got 200"),
+                       (["--sensors", "nope"], "--sensors: no suite 'nope' (one of tactical, mems, or a suite file)"),
+                       (["--mission", str(bad_mission)], "path: no such path file or shipped path 'no_such_path'")):
         p = subprocess.run([PY, str(REPO / "examples" / "hil" / "run_hil.py"), *args], capture_output=True,
                            text=True, timeout=60, env=ros_env())
         assert p.returncode == 2 and text in one_error_line(p.stderr, "run_hil.py"), p.stderr
+    # the autopilot template alone says the same of the mission (it stopped with a traceback, exit 1)
+    p = subprocess.run([PY, str(REPO / "examples" / "hil" / "external_autopilot.py"), "--mission", str(bad_mission)],
+                       capture_output=True, text=True, timeout=60, env=ros_env())
+    assert p.returncode == 2 and "no_such_path" in one_error_line(p.stderr, "external_autopilot.py"), p.stderr
