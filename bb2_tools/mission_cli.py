@@ -22,12 +22,14 @@ column copy): a duration whose trajectory would not fit is refused up front."""
 
 def add_mission_parser(sub) -> argparse.ArgumentParser:
     """The ``mission`` sub-command of ``bb2-sim`` on a sub-parsers object."""
-    ms = sub.add_parser("mission", help="fly a closed-loop mission without ROS")
-    ms.add_argument("file", metavar="FILE.yaml")
+    ms = sub.add_parser("mission", help="fly a closed-loop mission without ROS",
+                        description="Fly a mission file (bb2_mission.schema; missions/README.md) with the library "
+                                    "runner: the ROM, the planner's path and the mission's stack, no ROS.")
+    ms.add_argument("file", metavar="FILE.yaml", help="mission file, or a shipped mission's name (canyon, circle, ...)")
     ms.add_argument("--out", metavar="DIR", help="output directory for the CSV and figures")
     ms.add_argument("--no-adaptation", action="store_true", help="switch the L1 adaptation off")
     ms.add_argument("--overwrite", action="store_true", help="replace an existing DIR/<mission>.csv (else exit 2)")
-    ms.add_argument("--quiet", action="store_true")
+    ms.add_argument("--quiet", action="store_true", help="no progress line")
     return ms
 
 
