@@ -33,7 +33,8 @@ _index = int_at_least(0)
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog=PROG, description="Fly a campaign (Monte Carlo and grids) of missions or maneuvers; "
                                        "see the SPEC format in bb2_tools/campaign/__init__.py and README.md.")
-    p.add_argument("spec", metavar="SPEC.yaml")
+    p.add_argument("spec", metavar="SPEC.yaml", help="the campaign: its mission or maneuver, seed, samples, vary and "
+                   "collect (README, \"Campaigns\"; bb2_tools/campaign/__init__.py)")
     p.add_argument("--out", metavar="DIR", help="campaign directory (default out/campaigns/<name>)")
     p.add_argument("--engine", choices=["local", "ray"], default="local",
                    help="local: a process pool on this machine (default); ray: a Ray cluster")
