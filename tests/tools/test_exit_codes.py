@@ -327,6 +327,8 @@ def test_mission_refuses_impossible_starts_and_bad_files(tmp_path):
         "floor.yaml": (f"extends: {base / 'canyon.yaml'}\ninitial: {{offset_m: [0, 0, -48]}}\n",
                        "inside the sea floor"),
         "long.yaml": (f"extends: {base / 'straight.yaml'}\nduration_s: 1.0e+9\n", "in memory"),
+        "twice.yaml": (f"extends: {base / 'straight.yaml'}\nduration_s: 2\nduration_s: 5\n",   # one line
+                       "twice.yaml: not valid YAML (line 3, column 1: found the key 'duration_s' twice (first on line 2))"),
     }
     for name, (text, why) in files.items():
         (tmp_path / name).write_text(text)

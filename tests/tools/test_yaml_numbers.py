@@ -41,11 +41,29 @@ def test_nan_is_still_nan():
     assert np.isnan(load_yaml("v: .nan")["v"])
 
 
-def test_malformed_yaml_raises_as_the_safe_loader_does():
-    with pytest.raises(yaml.YAMLError):
+def test_malformed_yaml_raises_a_yaml_error_in_one_line():
+    with pytest.raises(yaml.YAMLError, match=r"^line 1, column 9: expected ',' or '\]', but got '<stream end>'"):
         load_yaml("a: [1, 2")
-    with pytest.raises(yaml.constructor.ConstructorError):  # safe: no Python objects
-        load_yaml("!!python/object/apply:os.system ['true']")
+    with pytest.raises(yaml.YAMLError, match="^line 1, column 1: could not determine a constructor for the tag "
+                                             "'tag:yaml.org,2002:python/object/apply:os.system'$"):
+        load_yaml("!!python/object/apply:os.system ['true']")   # safe: no Python objects
+
+
+@pytest.mark.parametrize("text, said", [
+    ("duration_s: 2\nname: x\nduration_s: 5\n", "line 3, column 1: found the key 'duration_s' twice (first on line 1)"),
+    ("boats:\n  b1: straight\n  b1: canyon\n", "line 3, column 3: found the key 'b1' twice (first on line 2)"),
+    ("sea: {hs: 1, hs: 2}\n", "line 1, column 14: found the key 'hs' twice (first on line 1)"),
+])
+def test_a_key_written_twice_is_an_error(text, said):
+    """PyYAML keeps the last of a key written twice without a word: a mission's second duration_s, or a fleet's
+    boat written twice, flew silently."""
+    with pytest.raises(yaml.YAMLError) as e:
+        load_yaml(text)
+    assert str(e.value) == said
+
+
+def test_a_merge_may_be_overridden():
+    assert load_yaml("base: &b {x: 1, y: 2}\nd:\n  <<: *b\n  x: 5\n")["d"] == {"x": 5, "y": 2}
 
 
 def test_a_mission_written_with_exponents_is_the_one_written_with_decimals(tmp_path):
