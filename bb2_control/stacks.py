@@ -363,6 +363,49 @@ def _resolve_sections(cfg: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+_OPTIONAL_KEYS: dict[str, frozenset[str]] = {
+    "": frozenset({"name", "description", "source"}),
+    "mixer": frozenset({"matrix_rows_planes_cols_dV_dH"}),
+    "l1": frozenset({"M_ss", "M_tf", "Q"}),   # a channel's own filter and Lyapunov weight, at any depth below l1
+}
+"""Keys a stack reads when given though its data files do not write them (``cfg.get`` with a default): allowed in
+an override besides the keys of the stack it starts from."""
+
+
+def _unknown_override_keys(over: Mapping[str, Any], base: Mapping[str, Any], where: str = "") -> list[str]:
+    """Dotted keys of ``over`` (a stack file's or mapping's changes to a named stack, or ``overrides``) that the
+    resolved ``base`` does not have: typos that would change nothing.  A section given by name (a string: a whole
+    entry of its data file) replaces the section and is not looked into."""
+    import difflib
+
+    out = []
+    section = where.split(".", 1)[0]
+    for k, v in over.items():
+        path = f"{where}.{k}" if where else str(k)
+        known = base.get(k, _MISSING) if isinstance(base, Mapping) else _MISSING
+        if path == "mixer":
+            known = deep_merge(load_data("mixer"), known if isinstance(known, Mapping) else {})
+        if known is _MISSING:
+            if k in _OPTIONAL_KEYS.get(section, ()) or (not where and k in _OPTIONAL_KEYS[""]):
+                continue
+            close = difflib.get_close_matches(str(k), [str(b) for b in base] if isinstance(base, Mapping) else [],
+                                              1, 0.6)
+            out.append(path + (f" (did you mean {(where + '.' if where else '') + close[0]}?)" if close else ""))
+        elif isinstance(v, Mapping) and isinstance(known, Mapping):
+            out += _unknown_override_keys(v, known, path)
+    return out
+
+
+_MISSING = object()
+
+
+def _refuse_unknown_keys(over: Mapping[str, Any], base: Mapping[str, Any], label: str, what: str) -> None:
+    bad = _unknown_override_keys({k: v for k, v in over.items() if k != "base"}, base)
+    if bad:
+        raise ControlConfigError(f"stack {label!r}: unknown key(s) {', '.join(bad)}: {what} has no such key "
+                                 "(it would change nothing)")
+
+
 def resolve_config(name_or_config: str | Path | Mapping[str, Any] | None = None,
                    overrides: Mapping[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
     """Full configuration (every named section replaced by its data) of a stack name, file or mapping.
@@ -388,11 +431,14 @@ def resolve_config(name_or_config: str | Path | Mapping[str, Any] | None = None,
     if base_name is not None:
         if base_name not in stacks["stacks"]:
             raise UnknownStackError(f"unknown base stack {base_name!r}; available: {sorted(stacks['stacks'])}")
-        cfg = deep_merge(_resolve_sections(stacks["stacks"][base_name]), _resolve_sections(doc))
+        base_cfg = _resolve_sections(stacks["stacks"][base_name])
+        _refuse_unknown_keys(doc, base_cfg, label if label != "custom" else base_name, f"stack {base_name}")
+        cfg = deep_merge(base_cfg, _resolve_sections(doc))
         label = doc.get("name", base_name if label in ("custom",) else label)
     else:
         cfg = _resolve_sections(doc)
     if overrides:
+        _refuse_unknown_keys(overrides, cfg, label, f"stack {label}")
         cfg = _resolve_sections(deep_merge(cfg, _resolve_sections(dict(overrides))))
     if cfg.get("type") not in _TYPES:
         raise ControlConfigError(f"stack {label!r}: type must be one of {sorted(_TYPES)}, got {cfg.get('type')!r}")

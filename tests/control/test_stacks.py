@@ -88,6 +88,33 @@ def test_overrides_and_mixer_sail_sign():
         build_stack("rate_2022", overrides={"guidance": {"Ts_s": 0.1}})
 
 
+@pytest.mark.parametrize("doc, said", [
+    ({"base": "rate_2022", "guidanc": {"d_m": 5.0}}, "guidanc (did you mean guidance?)"),
+    ({"base": "rate_2022", "guidance": {"d_mm": 5.0}}, "guidance.d_mm (did you mean guidance.d_m?)"),
+    ({"base": "los_2023", "autopilot": {"K_q_deg_per_radps": 3.0}}, "autopilot.K_q_deg_per_radps"),  # the rate loop's
+    ({"base": "rate_2022", "mixer": {"sail_sing": -1}}, "mixer.sail_sing (did you mean mixer.sail_sign?)"),
+    ({"base": "rate_2022", "speed": {"v_ref": 4.0}}, "speed.v_ref (did you mean speed.v_ref_mps?)"),
+])
+def test_a_key_the_stack_does_not_have_is_refused(doc, said):
+    """A typo in a stack's changes (a mission's stack: block, a campaign's varied stack.guidance.d_m) changed
+    nothing, without a word: a campaign 'varying' stack.guidance.d_mm flew every run with the stack's own d."""
+    with pytest.raises(ControlConfigError, match="unknown key") as e:
+        build_stack(doc)
+    assert said in str(e.value) and "it would change nothing" in str(e.value)
+    with pytest.raises(ControlConfigError, match="unknown key"):
+        build_stack(doc["base"], overrides={k: v for k, v in doc.items() if k != "base"})
+
+
+def test_the_keys_a_stack_reads_beyond_its_data_and_whole_sections_are_accepted():
+    st = build_stack({"base": "rate_2022", "name": "mine", "description": "d", "source": "s",
+                      "mixer": {"saturation_deg": 25.0},
+                      "guidance": {"d_m": 120.0}, "autopilot": "rate_P_2022"})
+    assert st.name == "mine" and st.guidance.gains.d == 120.0
+    st2 = build_stack({"base": "rate_2022", "mixer": {"matrix_rows_planes_cols_dV_dH": [[1, 0], [0, 1], [1, 0],
+                                                                                         [0, 1], [1, 0]]}})
+    assert st2.mixer.step(1.0, 0.0)[0] == 1.0
+
+
 def test_adaptation_off_equals_baseline_autopilot():
     st = build_stack("rate_2022", overrides={"adaptation": False})
     K = load_data("autopilots")["rate_P_2022"]["K_q_deg_per_radps"]

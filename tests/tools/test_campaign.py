@@ -290,6 +290,7 @@ BAD = [
     ({"mission": "circle", "vary": {"initial.offset_m": {"choice": [[0, 0, 0], [1, 2]]}}}, "initial.offset_m"),
     ({"mission": "circle", "vary": {"sea_state": [0, 42]}}, "vary.sea_state"),
     ({"mission": "circle", "collect": ["rms_vertical", "rms_sideways"]}, "collect"),
+    ({"mission": "circle", "vary": {"stack.guidance.d_mm": [100, 200]}}, "vary.stack.guidance.d_mm"),  # it flew d_m
     ({"maneuver": {"name": "barrel-roll"}}, "maneuver.name"),
     ({"maneuver": {"name": "turning-circle"}, "vary": {"rudder": [10, 20]}}, "vary.rudder"),
     ({"maneuver": {"name": "hzz"}, "vary": {"rudder_deg": [10, 20]}}, "rudder_deg not read by maneuver hzz"),
