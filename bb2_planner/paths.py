@@ -50,6 +50,11 @@ def _number(value: Any, what: str) -> float:
     return x
 
 
+PATH_KEYS = frozenset({"format", "version", "name", "description", "frame", "units", "t0", "tf", "degree",
+                       "control_points", "provenance", "facts"})
+"""The keys of a path document (the module docstring)."""
+
+
 def path_from_dict(data: dict[str, Any], *, where: str = "path") -> BernsteinPath:
     """Validate a path document (see module docstring) and build the :class:`BernsteinPath`."""
     try:
@@ -60,6 +65,9 @@ def path_from_dict(data: dict[str, Any], *, where: str = "path") -> BernsteinPat
             raise PathError(f"format is {fmt!r}, expected {FORMAT!r}")
         if int(data.get("version", VERSION)) > VERSION:
             raise PathError(f"version {data.get('version')} is newer than this reader ({VERSION})")
+        unknown = sorted(set(map(str, data)) - PATH_KEYS)
+        if unknown:  # a typo (t_0, t_f) would be read as its default or as missing
+            raise PathError(f"unknown key(s) {unknown}; allowed: {sorted(PATH_KEYS)}")
         for key in ("frame", "tf", "control_points"):
             if key not in data:
                 raise PathError(f"missing key {key!r}")

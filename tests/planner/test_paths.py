@@ -90,6 +90,8 @@ def good_doc():
     (lambda d: d.pop("tf"), "missing key 'tf'"),
     (lambda d: d.update(units={"control_points": "ft"}), "unit"),
     (lambda d: d.update(format="other"), "format"),
+    (lambda d: d.update(t_0=5.0), r"unknown key\(s\) \['t_0'\]"),   # it started at t0 = 0 without a word
+    (lambda d: d.update(extra=1), r"unknown key\(s\) \['extra'\]; allowed: \['control_points'"),
 ])
 def test_bad_documents(edit, match):
     doc = good_doc()
