@@ -365,12 +365,68 @@ def check_mission(path: Path) -> str:
         return ""
 
 
+GRAPH_PARAMS_FILE = Path(__file__).resolve().parents[1] / "config" / "bb2_graph.yaml"
+"""Every parameter the graph's nodes declare, with its default (``tests/ros/test_params_file.py`` keeps it so)."""
+ROS_OWN_PARAMETERS = frozenset({"use_sim_time", "start_type_description_service", "qos_overrides"})
+"""Parameters rclpy declares on every node (``qos_overrides.<topic>...`` as a prefix)."""
+
+
+def _parameter_names(params: Mapping, prefix: str = "") -> list[str]:
+    """The dotted names of a ``ros__parameters`` mapping (nested mappings are dotted, as rcl reads them)."""
+    out: list[str] = []
+    for k, v in params.items():
+        name = f"{prefix}{k}"
+        out += _parameter_names(v, name + ".") if isinstance(v, Mapping) else [name]
+    return out
+
+
+def _known_parameters() -> dict[str, frozenset[str]] | None:
+    """Node name -> the parameters it may be given (``/**``: any node's), or None when the graph's params file is
+    not beside this module (an installed copy without its source)."""
+    if not GRAPH_PARAMS_FILE.is_file():
+        return None
+    from bb2_sim.yaml_files import load as load_yaml
+    from bb2_tools.recorder import PARAMETERS as RECORDER_PARAMETERS
+
+    doc = load_yaml(GRAPH_PARAMS_FILE.read_text(encoding="utf-8"))
+    every = frozenset(_parameter_names(doc["/**"]["ros__parameters"]))
+    graph = {n.name: every for n in GRAPH_NODES if n.name != RECORDER_NODE_NAME}
+    graph[RECORDER_NODE_NAME] = frozenset(RECORDER_PARAMETERS)
+    graph["/**"] = every | graph[RECORDER_NODE_NAME]
+    return graph
+
+
 def check_params_file(path: Path) -> None:
-    """A ROS 2 params file: a mapping of node names (or ``/**``) to ``{ros__parameters: {...}}``."""
+    """A ROS 2 params file: a mapping of node names (or ``/**``) to ``{ros__parameters: {...}}``, whose node names
+    are the graph's and whose parameters some node declares: ROS ignores a parameter no node declares, so a typo
+    (``rate_hzz``, a node ``simulatr``) flew the mission on the defaults without a word."""
+    import difflib
+
     data = _load_yaml_mapping(path, "params file")
     for node, body in data.items():
         if not isinstance(body, dict) or not isinstance(body.get("ros__parameters"), dict):
             raise LaunchError(f"params file {path}: entry {node!r} needs a 'ros__parameters' mapping")
+    known = _known_parameters()
+    if known is None:
+        return
+    for node, body in data.items():
+        key = str(node)
+        name = "/**" if "*" in key.rsplit("/", 1)[-1] else key.rsplit("/", 1)[-1]   # '/boat1/simulator' -> simulator
+        if name not in known:
+            if name in (CONTAINER.name, FOXGLOVE.name):
+                continue
+            close = difflib.get_close_matches(name, sorted(known), 1, 0.6)
+            raise LaunchError(f"params file {path}: {key!r} is no node of the graph"
+                              + (f" (did you mean {close[0]!r}?)" if close else "")
+                              + f"; nodes: {', '.join(n for n in known if n != '/**')}, or '/**'")
+        for param in _parameter_names(body["ros__parameters"]):
+            if param in known[name] or param.split(".", 1)[0] in ROS_OWN_PARAMETERS:
+                continue
+            close = difflib.get_close_matches(param, sorted(known[name]), 1, 0.6)
+            raise LaunchError(f"params file {path}: {key}: parameter {param!r} is declared by "
+                              + ("no node of the graph" if name == "/**" else f"no {name}")
+                              + (f" (did you mean {close[0]!r}?)" if close else "")
+                              + "; ROS would ignore it")
 
 
 BACKGROUND_NICE = 10

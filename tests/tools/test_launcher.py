@@ -262,6 +262,34 @@ def test_run_graph_starts_early_nodes_before_the_gated_ones_are_ready(tmp_path):
     assert time.monotonic() - t0 < 15.0
 
 
+@pytest.mark.parametrize("text, said", [
+    ("/**:\n  ros__parameters:\n    rate_hzz: 5.0\n",
+     "/**: parameter 'rate_hzz' is declared by no node of the graph (did you mean 'rate_hz'?); ROS would ignore it"),
+    ("simulatr:\n  ros__parameters:\n    rate_hz: 5.0\n", "'simulatr' is no node of the graph (did you mean "
+                                                          "'simulator'?); nodes: planner, path_following"),
+    ("recorder:\n  ros__parameters:\n    chunk_sise: 5\n",
+     "recorder: parameter 'chunk_sise' is declared by no recorder (did you mean 'chunk_size'?)"),
+])
+def test_a_params_file_naming_what_no_node_declares_is_refused(tmp_path, text, said):
+    """ROS ignores a parameter no node declares: a typo in a params file flew the mission on the defaults."""
+    params = tmp_path / "p.yaml"
+    params.write_text(text)
+    with pytest.raises(L.LaunchError) as e:
+        L.check_params_file(params)
+    assert said in str(e.value), str(e.value)
+
+
+def test_the_graphs_own_params_files_and_ros_own_parameters_pass(tmp_path):
+    for f in (REPO / "config" / "bb2_graph.yaml", REPO / "examples" / "hil" / "simulator_hil.yaml"):
+        L.check_params_file(f)
+    ok = tmp_path / "ok.yaml"
+    ok.write_text("/**:\n  ros__parameters:\n    use_sim_time: true\n    qos_overrides:\n      /bb2/odom:\n"
+                  "        publisher: {depth: 5}\n/boat1/simulator:\n  ros__parameters:\n    rate_hz: 5.0\n"
+                  "/**/mixer:\n  ros__parameters:\n    callback_priority: 0\nrecorder:\n  ros__parameters:\n"
+                  "    chunk_size: 1000\n    batch_period_s: 0.0\n")
+    L.check_params_file(ok)
+
+
 def test_bad_input_exits_2_with_one_clear_message(tmp_path, capsys):
     assert L.main([str(tmp_path / "missing.yaml")]) == 2
     assert "does not exist" in capsys.readouterr().err
