@@ -372,6 +372,9 @@ _OPTIONAL_KEYS: dict[str, frozenset[str]] = {
 an override besides the keys of the stack it starts from."""
 
 
+_MISSING = object()
+
+
 def _unknown_override_keys(over: Mapping[str, Any], base: Mapping[str, Any], where: str = "") -> list[str]:
     """Dotted keys of ``over`` (a stack file's or mapping's changes to a named stack, or ``overrides``) that the
     resolved ``base`` does not have: typos that would change nothing.  A section given by name (a string: a whole
@@ -394,9 +397,6 @@ def _unknown_override_keys(over: Mapping[str, Any], base: Mapping[str, Any], whe
         elif isinstance(v, Mapping) and isinstance(known, Mapping):
             out += _unknown_override_keys(v, known, path)
     return out
-
-
-_MISSING = object()
 
 
 def _refuse_unknown_keys(over: Mapping[str, Any], base: Mapping[str, Any], label: str, what: str) -> None:

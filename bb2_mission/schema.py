@@ -460,9 +460,8 @@ def read_mission_document(file: str | Path) -> dict[str, Any]:
     while "extends" in doc:
         base = doc.pop("extends")
         bf = _resolve_file(str(base), holder.parent) if isinstance(base, str) else None
-        if bf is None and isinstance(base, str) and Path(base).suffix == "" and "/" not in base \
-                and (MISSIONS_DIR / f"{base}.yaml").exists():
-            bf = MISSIONS_DIR / f"{base}.yaml"
+        if bf is None and isinstance(base, str) and mission_file(base).exists():   # a shipped name
+            bf = mission_file(base)
         if bf is None:
             raise MissionError(f"{holder}: extends: mission file {base!r} not found")
         if bf.resolve() in seen:

@@ -639,16 +639,16 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(argv: Sequence[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    args = parser.parse_args(argv)
     from bb2_msgs_py.ros_env import ros_environment_or_error
 
     if (bad := ros_environment_or_error("bb2-replay")) is not None:
         return bad
     if not (args.start_offset >= 0 and math.isfinite(args.start_offset)):
         return _error(f"--start-offset must be >= 0 s, got {args.start_offset}")
-    defaults = _parser().parse_args([str(args.bag)])
     other = sorted(o for o in (REPLAY_ONLY if args.open_loop else OPEN_LOOP_ONLY)   # set to other than the default
-                   if getattr(args, o[2:].replace("-", "_")) != getattr(defaults, o[2:].replace("-", "_")))
+                   if getattr(args, dest := o[2:].replace("-", "_")) != parser.get_default(dest))
     if other:  # it would be ignored without a word
         return _error(f"{', '.join(other)} {'do' if len(other) > 1 else 'does'} not apply "
                       + ("to --open-loop (no ROS: nothing is republished)" if args.open_loop else
