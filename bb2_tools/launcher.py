@@ -380,15 +380,15 @@ def _parameter_names(params: Mapping, prefix: str = "") -> list[str]:
     return out
 
 
-def _known_parameters() -> dict[str, frozenset[str]] | None:
-    """Node name -> the parameters it may be given (``/**``: any node's), or None when the graph's params file is
-    not beside this module (an installed copy without its source)."""
-    if not GRAPH_PARAMS_FILE.is_file():
+def _known_parameters(graph_params_file: Path = GRAPH_PARAMS_FILE) -> dict[str, frozenset[str]] | None:
+    """Node name -> the parameters it may be given (``/**``: any node's), or None when the graph's params file
+    (``graph_params_file``, every declared parameter) is not there (an installed copy without its source)."""
+    if not graph_params_file.is_file():
         return None
     from bb2_sim.yaml_files import load as load_yaml
     from bb2_tools.recorder import PARAMETERS as RECORDER_PARAMETERS
 
-    doc = load_yaml(GRAPH_PARAMS_FILE.read_text(encoding="utf-8"))
+    doc = load_yaml(graph_params_file.read_text(encoding="utf-8"))
     every = frozenset(_parameter_names(doc["/**"]["ros__parameters"]))
     graph = {n.name: every for n in GRAPH_NODES if n.name != RECORDER_NODE_NAME}
     graph[RECORDER_NODE_NAME] = frozenset(RECORDER_PARAMETERS)
@@ -396,17 +396,19 @@ def _known_parameters() -> dict[str, frozenset[str]] | None:
     return graph
 
 
-def check_params_file(path: Path) -> None:
+def check_params_file(path: Path, graph_params_file: Path = GRAPH_PARAMS_FILE) -> None:
     """A ROS 2 params file: a mapping of node names (or ``/**``) to ``{ros__parameters: {...}}``, whose node names
     are the graph's and whose parameters some node declares: ROS ignores a parameter no node declares, so a typo
-    (``rate_hzz``, a node ``simulatr``) flew the mission on the defaults without a word."""
+    (``rate_hzz``, a node ``simulatr``) flew the mission on the defaults without a word.  ``graph_params_file``:
+    the graph's own params file, which lists every declared parameter (the launch files pass the installed
+    share/bb2_bringup/config/bb2_graph.yaml)."""
     import difflib
 
     data = _load_yaml_mapping(path, "params file")
     for node, body in data.items():
         if not isinstance(body, dict) or not isinstance(body.get("ros__parameters"), dict):
             raise LaunchError(f"params file {path}: entry {node!r} needs a 'ros__parameters' mapping")
-    known = _known_parameters()
+    known = _known_parameters(graph_params_file)
     if known is None:
         return
     for node, body in data.items():
@@ -621,18 +623,18 @@ def namespace_args(namespace: str) -> list[str]:
 FOXGLOVE_DEFAULT_PORT = 8765
 
 
-def check_foxglove_port(port: int) -> None:
+def check_foxglove_port(port: int, option: str = "--foxglove") -> None:
     """Refuse, before anything starts, a Foxglove port out of range or already taken on 127.0.0.1
-    (:class:`LaunchError`)."""
+    (:class:`LaunchError`; ``option``: how the user gave it, ``foxglove_port:=`` in the launch file)."""
     import socket
 
     if not 1 <= port <= 65535:
-        raise LaunchError(f"--foxglove PORT must be 1..65535, got {port}")
+        raise LaunchError(f"{option} must be a port in 1..65535, got {port}")
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         try:
             s.bind(("127.0.0.1", int(port)))
         except OSError as exc:
-            raise LaunchError(f"--foxglove {port}: the port is not free on 127.0.0.1 ({exc.strerror})") from None
+            raise LaunchError(f"{option} {port}: the port is not free on 127.0.0.1 ({exc.strerror})") from None
 
 
 def gap_lines(bag: Path) -> list[str]:

@@ -225,6 +225,64 @@ def test_ros2_launch_in_real_time_ends_once_a_recorder_behind_holds_the_last_ste
         or "[simulator]: callbacks with normal (SCHED_FIFO 40 refused" in out, out[-3000:]
 
 
+def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_starts(ws):
+    """launch_ros only warns of a missing params file, ROS ignores a parameter no node declares, a bad mission
+    was refused by every node on its own and a taken Foxglove port by its server, the graph flying on: each is now
+    one error before any process starts, and ``ros2 launch`` exits 1 (as ``bb2-launch`` refuses them)."""
+    env, install, tmp = ws
+    (tmp / "typo.yaml").write_text("/**:\n  ros__parameters:\n    rate_hzz: 5.0\n")
+    (tmp / "node_typo.yaml").write_text("/boat1/simulatr:\n  ros__parameters:\n    rate_hz: 5.0\n")
+    (tmp / "bad_mission.yaml").write_text("extends: canyon\nduration_s: -5\n")
+    domain = claimed_domain()
+    import socket
+
+    taken = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    taken.bind(("127.0.0.1", 0))
+    taken.listen()
+    port = taken.getsockname()[1]
+    for launch_file, args, said in (
+            ("bb2_graph.launch.py", ["foxglove:=true", "foxglove_port:=70000"],
+             "launch argument foxglove_port must be a port in 1..65535, got 70000"),
+            ("bb2_graph.launch.py", ["foxglove:=true", f"foxglove_port:={port}"],
+             f"launch argument foxglove_port {port}: the port is not free on 127.0.0.1"),
+            ("bb2_graph.launch.py", [f"params_file:={tmp / 'typo.yaml'}"],
+             "parameter 'rate_hzz' is declared by no node of the graph (did you mean 'rate_hz'?)"),
+            ("bb2_graph.launch.py", [f"params_file:={tmp / 'missing.yaml'}"], "missing.yaml does not exist"),
+            ("bb2_graph.launch.py", [f"mission:={tmp / 'bad_mission.yaml'}"], "duration_s must be > 0 s, got -5.0"),
+            ("fleet.launch.py", [f"params_file:={tmp / 'node_typo.yaml'}"],
+             "'/boat1/simulatr' is no node of the graph (did you mean 'simulator'?)"),
+            ("fleet.launch.py", [f"missions:={tmp / 'short.yaml'},{tmp / 'bad_mission.yaml'}"],
+             "duration_s must be > 0 s, got -5.0")):
+        p = launch(ws, domain, launch_file, "record:=false", *args)
+        out = finish(p, 60)
+        assert p.returncode == 1, (args, out[-3000:])
+        assert "Caught exception in launch (see debug for traceback): " in out and said in out, (args, out[-3000:])
+        assert "process started" not in out, (args, out[-3000:])  # refused before any node
+    taken.close()
+
+
+def test_a_failed_run_makes_ros2_launch_exit_1(ws):
+    """A simulator that exits with an error ends the launch with exit code 1 (it was 0: a script could not tell);
+    in a fleet the other boats fly on to their end first."""
+    env, install, tmp = ws
+    (tmp / "bad_rate.yaml").write_text("simulator:\n  ros__parameters:\n    rate_hz: -5.0\n")
+    (tmp / "bad_rate_boat1.yaml").write_text("/boat1/simulator:\n  ros__parameters:\n    rate_hz: -5.0\n")
+    domain = claimed_domain()
+    p = launch(ws, domain, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "record:=false",
+               f"params_file:={tmp / 'bad_rate.yaml'}")
+    out = finish(p, 120)
+    assert p.returncode == 1, out[-3000:]
+    assert "parameter 'rate_hz' must be > 0 and finite, got -5.0" in out, out[-3000:]
+    assert "simulator exited (code 2): stopping the graph" in out, out[-3000:]
+    assert "the simulator exited with code 2: the run failed" in out, out[-3000:]
+    p = launch(ws, domain, "fleet.launch.py", f"missions:={tmp / 'short.yaml'}", "record:=false",
+               f"params_file:={tmp / 'bad_rate_boat1.yaml'}")
+    out = finish(p, 180)
+    assert p.returncode == 1, out[-3000:]
+    assert "/boat2/simulator exited (code 0); 2 of 2 boats done" in out, out[-3000:]  # boat2 flew to its end
+    assert "1 of 2 boats' runs failed: the simulator of /boat1 (code 2) exited with an error" in out, out[-3000:]
+
+
 def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):
     env, install, tmp = ws
     solo = tmp / "solo"

@@ -23,7 +23,10 @@ params file, then the mission, the time mode, use_sim_time (the simulator is the
 waits for a stalled recorder rather than lose messages), in real time ``wait_for_commands`` (the clock starts once
 the controllers answer, not on the start-up failsafe).  The simulator ends the run where bb2-launch does (the
 mission duration, or ``end_at_progress``: the path flown) and exits; its exit stops the whole launch (the
-recorder finishes its bag on the SIGINT).  Ctrl-C stops every node cleanly.  With ``compose:=true`` the same nodes
+recorder finishes its bag on the SIGINT); a simulator that exits with an error (the run failed: the boat diverged, or
+the mission or a parameter was refused) makes ``ros2 launch`` exit 1.  The mission and the params file are checked before any node starts, as
+bb2-launch checks them (a params file's unknown node or parameter is refused: ROS would ignore it).  Ctrl-C stops
+every node cleanly.  With ``compose:=true`` the same nodes
 with the same arguments run in one ``container`` process (each node's ROS arguments apply to it alone), whose
 exit ends the launch.
 """
@@ -44,6 +47,7 @@ from launch_ros.substitutions import ExecutableInPackage
 
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
+from bb2_tools.launcher import LaunchError, check_foxglove_port, check_mission, check_params_file
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
@@ -81,6 +85,29 @@ def mission_file(value: str) -> Path:
     return installed_or_file(value, SHARE / "missions", "mission")
 
 
+def checked_mission(path: Path) -> str:
+    """The mission at ``path`` checked before any node starts, as bb2-launch checks it (``check_mission``: it loads,
+    its boat starts in the water), else every node refused it with the same message; returns '' or its warning."""
+    try:
+        return check_mission(path)
+    except LaunchError as exc:
+        raise RuntimeError(str(exc)) from None
+
+
+def checked_params_file(value: str) -> str:
+    """'' (no params file) or the params file ``value``, checked as ``bb2-launch --params`` checks it: it exists,
+    it is ROS 2's layout, and its node names and parameters are the graph's (launch_ros only warns of a missing
+    file and starts the nodes without it; ROS ignores a parameter no node declares)."""
+    if not value.strip():
+        return ""
+    path = Path(value).expanduser().resolve()
+    try:
+        check_params_file(path, SHARE / "config" / "bb2_graph.yaml")
+    except LaunchError as exc:
+        raise RuntimeError(str(exc)) from None
+    return str(path)
+
+
 def flag(value: str, name: str) -> bool:
     v = value.strip().lower()
     if v not in ("true", "false"):
@@ -95,6 +122,14 @@ def remappings(namespace: str) -> list[tuple[str, str]]:
     stay every boat's."""
     ns = namespace.strip("/")
     return [("/clock", f"/{ns}/clock")] if ns else []
+
+
+def fail(message: str) -> OpaqueFunction:
+    """An action that fails the launch with ``message``: an exception is how a launch file makes ``ros2 launch``
+    exit 1 (it logs "Caught exception in launch ...: message" and stops every node, as a shutdown does)."""
+    def raise_it(_context):
+        raise RuntimeError(message)
+    return OpaqueFunction(function=raise_it)
 
 
 def _ros_value(v) -> str:
@@ -169,10 +204,15 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
         actions.append(sim)
     what = "container" if compose else "simulator"
     if stop_launch:
-        actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=lambda event, _ctx: [
-            LogInfo(msg=f"[bb2_bringup] {what}{' of ' + ns if ns else ''} exited (code {event.returncode}): "
-                        "stopping the graph"),
-            EmitEvent(event=Shutdown(reason="the simulator ended the run"))])))
+        def on_exit(event, context):
+            said = LogInfo(msg=f"[bb2_bringup] {what}{' of ' + ns if ns else ''} exited (code {event.returncode}): "
+                               "stopping the graph")
+            if event.returncode != 0 and not context.is_shutdown:
+                return [said, fail(f"the {what}{' of ' + ns if ns else ''} exited with code {event.returncode}: "
+                                   "the run failed (its log above says why)")]
+            return [said, EmitEvent(event=Shutdown(reason="the simulator ended the run"))]
+
+        actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=on_exit)))
     return actions
 
 
@@ -194,6 +234,8 @@ def default_bag(bag_dir: str, mission: Path, namespace: str) -> Path:
 def _graph(context):
     a = {k: LaunchConfiguration(k).perform(context) for k in ARGUMENTS}
     mission = mission_file(a["mission"])
+    warning = checked_mission(mission)
+    params_file = checked_params_file(a["params_file"])
     record = flag(a["record"], "record")
     bag = (Path(a["bag"]).expanduser().resolve() if a["bag"] else default_bag(a["bag_dir"], mission, a["namespace"])) \
         if record else None
@@ -202,9 +244,14 @@ def _graph(context):
         fox_port = int(a["foxglove_port"]) if fox else None
     except ValueError:
         raise RuntimeError(f"launch argument foxglove_port must be a port number, got {a['foxglove_port']!r}") from None
+    if fox_port is not None:  # out of range or taken: said now, as bb2-launch --foxglove says it
+        try:
+            check_foxglove_port(fox_port, "launch argument foxglove_port")
+        except LaunchError as exc:
+            raise RuntimeError(str(exc)) from None
     acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
-                params_file=a["params_file"], compose=flag(a["compose"], "compose"), foxglove_port=fox_port)
-    return [LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
+                params_file=params_file, compose=flag(a["compose"], "compose"), foxglove_port=fox_port)
+    return [*([LogInfo(msg=f"[bb2_bringup] warning: {warning}")] if warning else []), LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
                         + (" | composed" if flag(a["compose"], "compose") else "")
                         + (f" | namespace /{a['namespace'].strip('/')}" if a["namespace"] else "")
                         + (f" | bag {bag}" if bag else " | not recorded")

@@ -15,7 +15,9 @@ with its own controllers (deterministic: a boat's run equals the same mission fl
   bag_dir      default bags
   params_file  the graph's params file
 
-The launch ends when every boat's simulator has ended its run (Ctrl-C stops every node cleanly).
+The launch ends when every boat's simulator has ended its run, with exit code 1 when any boat's simulator exited
+with an error (the other boats fly on to their end).  Every boat's mission and the params file are checked
+before any node starts, as in bb2_graph.launch.py.  Ctrl-C stops every node cleanly.
 """
 from __future__ import annotations
 
@@ -65,24 +67,35 @@ def _fleet(context):
             missions *= len(boats)
         if len(missions) != len(boats):
             raise RuntimeError(f"{len(missions)} missions for {len(boats)} boats")
+    params_file = graph.checked_params_file(a["params_file"])
+    checked = [(ns, graph.mission_file(m)) for ns, m in zip(boats, missions)]
+    warnings = [(ns, graph.checked_mission(mission)) for ns, mission in checked]  # every boat's, before any starts
     actions, sims = [], []
     if record:
         actions += [LogInfo(msg=f"[bb2_bringup] fleet bag {root}"), graph.fleet_recorder(root, boats)]
-    for ns, m in zip(boats, missions):
-        mission = graph.mission_file(m)
+    for (ns, mission), (_ns, warning) in zip(checked, warnings):
         acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=None, namespace=ns,
-                          params_file=a["params_file"], stop_launch=False, own_recorder=False)
+                          params_file=params_file, stop_launch=False, own_recorder=False)
         sims.append(acts[-1])
-        actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}"), *acts]
+        actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}"),
+                    *([LogInfo(msg=f"[bb2_bringup] warning: /{ns}: {warning}")] if warning else []), *acts]
     ended: set[int] = set()
+    failed: list[str] = []
     names = {id(sim): ns for sim, ns in zip(sims, boats)}
 
-    def on_exit(event, _ctx):
+    def on_exit(event, context):
         ended.add(id(event.action))
-        out = [LogInfo(msg=f"[bb2_bringup] /{names.get(id(event.action), '?')}/simulator exited "
+        ns = names.get(id(event.action), "?")
+        if event.returncode != 0 and not context.is_shutdown:
+            failed.append(f"/{ns} (code {event.returncode})")
+        out = [LogInfo(msg=f"[bb2_bringup] /{ns}/simulator exited "
                            f"(code {event.returncode}); {len(ended)} of {len(sims)} boats done")]
         if len(ended) == len(sims):
-            out.append(EmitEvent(event=Shutdown(reason="every boat ended its run")))
+            if failed:  # the other boats flew on; an exception is how ``ros2 launch`` exits non-zero
+                out.append(graph.fail(f"{len(failed)} of {len(sims)} boats' runs failed: the simulator of "
+                                      f"{', '.join(failed)} exited with an error (its log above says why)"))
+            else:
+                out.append(EmitEvent(event=Shutdown(reason="every boat ended its run")))
         return out
 
     for sim in sims:
