@@ -252,8 +252,10 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("fleet.launch.py", [f"params_file:={tmp / 'node_typo.yaml'}"],
              "'/boat1/simulatr' is no node of the graph (did you mean 'simulator'?)"),
             ("fleet.launch.py", [f"missions:={tmp / 'short.yaml'},{tmp / 'bad_mission.yaml'}"],
-             "duration_s must be > 0 s, got -5.0")):
-        p = launch(ws, domain, launch_file, "record:=false", *args)
+             "duration_s must be > 0 s, got -5.0"),
+            ("bb2_graph.launch.py", ["record:=true", f"bag:={tmp}"],  # the recorder refused it once nodes were up
+             f"bag directory {tmp} exists and is not empty (another run has it)")):
+        p = launch(ws, domain, launch_file, *args, *([] if "record:=true" in args else ["record:=false"]))
         out = finish(p, 60)
         assert p.returncode == 1, (args, out[-3000:])
         assert "Caught exception in launch (see debug for traceback): " in out and said in out, (args, out[-3000:])
@@ -281,6 +283,31 @@ def test_a_failed_run_makes_ros2_launch_exit_1(ws):
     assert p.returncode == 1, out[-3000:]
     assert "/boat2/simulator exited (code 0); 2 of 2 boats done" in out, out[-3000:]  # boat2 flew to its end
     assert "1 of 2 boats' runs failed: the simulator of /boat1 (code 2) exited with an error" in out, out[-3000:]
+
+
+def test_a_node_that_dies_mid_run_stops_the_launch_with_exit_code_1(ws):
+    """Without its mixer the simulator stepped on held planes, one step a second of wall time, for the rest of the
+    mission (hours): a graph node that dies before the run's end now stops every node and fails the launch."""
+    env, install, tmp = ws
+    domain = claimed_domain()
+    p = launch(ws, domain, "bb2_graph.launch.py", "mission:=canyon", "record:=false")
+    seen: list[str] = []
+    drain = threading.Thread(target=lambda: seen.extend(p.stdout), daemon=True)
+    drain.start()
+    try:
+        wait_for_clock(domain, 1.0, timeout_s=120)
+        (mixer,) = [pid for pid in descendants(p.pid) if "lib/bb2_ros/mixer" in command_line(pid)]
+        os.kill(mixer, signal.SIGKILL)
+        p.wait(60)   # the canyon's 475 s of mission would take minutes even flown whole
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait(30)
+        drain.join(10)
+    out = "".join(seen)
+    assert p.returncode == 1, out[-3000:]
+    assert "the mixer was killed by signal 9 before the run's end: stopping the graph" in out, out[-3000:]
+    assert out.count("process has finished cleanly") == 4, out[-3000:]  # the others stopped cleanly
 
 
 def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):

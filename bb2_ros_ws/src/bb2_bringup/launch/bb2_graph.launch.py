@@ -23,7 +23,9 @@ params file, then the mission, the time mode, use_sim_time (the simulator is the
 waits for a stalled recorder rather than lose messages), in real time ``wait_for_commands`` (the clock starts once
 the controllers answer, not on the start-up failsafe).  The simulator ends the run where bb2-launch does (the
 mission duration, or ``end_at_progress``: the path flown) and exits; its exit stops the whole launch (the
-recorder finishes its bag on the SIGINT); a simulator that exits with an error (the run failed: the boat diverged, or
+recorder finishes its bag on the SIGINT); a node that dies before the run's end stops the graph and fails the launch
+(without a controller the simulator would step on held planes, one step a second; without the recorder it waits
+for a reader), the Foxglove server excepted (said; the run goes on); a simulator that exits with an error (the run failed: the boat diverged, or
 the mission or a parameter was refused) makes ``ros2 launch`` exit 1.  The mission and the params file are checked before any node starts, as
 bb2-launch checks them (a params file's unknown node or parameter is refused: ROS would ignore it).  Ctrl-C stops
 every node cleanly.  With ``compose:=true`` the same nodes
@@ -174,13 +176,17 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
                     prefix=BACKGROUND if background else None)
 
     actions = []
+    run_over: list[bool] = []   # [True] once this boat's simulator has exited: its nodes may go after it
+    who = (lambda exe: f"/{ns}/{exe}") if ns else (lambda exe: f"the {exe}")
     if record and own_recorder:
         assert bag is not None
         actions.append(node("bb2_tools", "recorder", {"bag_directory": str(bag), "use_sim_time": True},
                             background=True))
+        actions.append(watch(actions[-1], who("recorder"), lambda: bool(run_over)))
     if foxglove_port is not None:
         actions.append(node("bb2_tools", "foxglove_bridge", {"port": int(foxglove_port), "use_sim_time": True},
                             background=True))
+        actions.append(watch(actions[-1], who("foxglove_bridge"), lambda: bool(run_over), essential=False))
     sim_values = {"use_sim_time": False, "time_mode": time_mode, "exit_at_end": True, "end_at_progress": True,
                   "wait_for_readers": record, "wait_for_commands": time_mode == "realtime",
                   "recorder_ack_window": RECORDER_ACK_WINDOW if record and time_mode == "lockstep" else 0}
@@ -196,13 +202,15 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
         sim = ExecuteProcess(cmd=[ExecutableInPackage("container", "bb2_ros"),
                                   *container_arguments(nodes, params, ns)],
                              name="container" + (f"_{ns}" if ns else ""), output="screen")
-        actions.append(sim)
     else:
-        actions += [node("bb2_ros", exe, {"use_sim_time": True, **(rt if exe in REALTIME_CONTROLLERS else {})},
-                         background=bg) for exe, bg in controllers]
+        for exe, bg in controllers:
+            actions.append(node("bb2_ros", exe, {"use_sim_time": True, **(rt if exe in REALTIME_CONTROLLERS else {})},
+                                background=bg))
+            actions.append(watch(actions[-1], who(exe), lambda: bool(run_over)))
         sim = node("bb2_ros", "simulator", sim_values)
-        actions.append(sim)
     what = "container" if compose else "simulator"
+    actions.append(RegisterEventHandler(OnProcessExit(target_action=sim,
+                                                      on_exit=lambda _event, _ctx: run_over.append(True))))
     if stop_launch:
         def on_exit(event, context):
             said = LogInfo(msg=f"[bb2_bringup] {what}{' of ' + ns if ns else ''} exited (code {event.returncode}): "
@@ -213,7 +221,25 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
             return [said, EmitEvent(event=Shutdown(reason="the simulator ended the run"))]
 
         actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=on_exit)))
+    actions.append(sim)   # last: the caller's (a fleet's) handle on this boat's simulator
     return actions
+
+
+def watch(action, who: str, run_over, *, essential: bool = True) -> RegisterEventHandler:
+    """A handler of ``action``'s exit (a node's process; ``who`` names it) before the run is over (``run_over()``
+    false) and the launch is not stopping: an ``essential`` node's fails the launch (exit 1, every node stopped:
+    without a controller the simulator would step on held planes, one step a second, and without the recorder
+    it waits for a reader; bb2-launch stops the graph the same way); any other's is said and the run goes on."""
+    def on_exit(event, context):
+        if context.is_shutdown or run_over():
+            return None
+        rc = event.returncode
+        how = f"was killed by signal {-rc}" if rc < 0 else f"exited (code {rc})"
+        if not essential:
+            return [LogInfo(msg=f"[bb2_bringup] {who} {how}: the run goes on without it")]
+        return [fail(f"{who} {how} before the run's end: stopping the graph (the run is not whole; its log above "
+                     "says why)")]
+    return RegisterEventHandler(OnProcessExit(target_action=action, on_exit=on_exit))
 
 
 def fleet_recorder(bag: Path, boats: list[str]) -> Node:
@@ -239,6 +265,11 @@ def _graph(context):
     record = flag(a["record"], "record")
     bag = (Path(a["bag"]).expanduser().resolve() if a["bag"] else default_bag(a["bag_dir"], mission, a["namespace"])) \
         if record else None
+    if bag is not None and bag.exists() and (not bag.is_dir() or any(bag.iterdir())):
+        # the recorder would refuse it once the nodes are up (as bb2-launch refuses an --out another run has)
+        raise RuntimeError(f"bag directory {bag} " + ("exists and is not empty (another run has it)" if bag.is_dir()
+                                                      else "is a file") + ": choose another bag:=, or leave bag:='' "
+                           "for a new one under bag_dir")
     fox = flag(a["foxglove"], "foxglove")
     try:
         fox_port = int(a["foxglove_port"]) if fox else None

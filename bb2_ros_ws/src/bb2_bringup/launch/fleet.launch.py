@@ -16,7 +16,8 @@ with its own controllers (deterministic: a boat's run equals the same mission fl
   params_file  the graph's params file
 
 The launch ends when every boat's simulator has ended its run, with exit code 1 when any boat's simulator exited
-with an error (the other boats fly on to their end).  Every boat's mission and the params file are checked
+with an error (the other boats fly on to their end); any other node of a boat, or the fleet's recorder, that dies
+before its run's end stops every boat and fails the launch (as in bb2_graph.launch.py).  Every boat's mission and the params file are checked
 before any node starts, as in bb2_graph.launch.py.  Ctrl-C stops every node cleanly.
 """
 from __future__ import annotations
@@ -71,15 +72,17 @@ def _fleet(context):
     checked = [(ns, graph.mission_file(m)) for ns, m in zip(boats, missions)]
     warnings = [(ns, graph.checked_mission(mission)) for ns, mission in checked]  # every boat's, before any starts
     actions, sims = [], []
+    ended: set[int] = set()
     if record:
-        actions += [LogInfo(msg=f"[bb2_bringup] fleet bag {root}"), graph.fleet_recorder(root, boats)]
+        recorder = graph.fleet_recorder(root, boats)
+        actions += [LogInfo(msg=f"[bb2_bringup] fleet bag {root}"), recorder,
+                    graph.watch(recorder, "the fleet's recorder", lambda: len(ended) == len(sims))]
     for (ns, mission), (_ns, warning) in zip(checked, warnings):
         acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=None, namespace=ns,
                           params_file=params_file, stop_launch=False, own_recorder=False)
         sims.append(acts[-1])
         actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}"),
                     *([LogInfo(msg=f"[bb2_bringup] warning: /{ns}: {warning}")] if warning else []), *acts]
-    ended: set[int] = set()
     failed: list[str] = []
     names = {id(sim): ns for sim, ns in zip(sims, boats)}
 
