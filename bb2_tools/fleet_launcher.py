@@ -26,8 +26,8 @@ from pathlib import Path
 from bb2_sim.outputs import OutputError, claim_run_dir
 
 from bb2_tools.graph_monitor import domain_monitor
-from bb2_tools.launcher import (GRAPH_NODES, RECORDER_NODE_NAME, check_params_file, check_run_options, gap_lines,
-                                node_command, recorded_topics)
+from bb2_tools.launcher import (GRAPH_NODES, RECORDER_NODE_NAME, check_params_file, check_run_options, check_without,
+                                gap_lines, node_command, recorded_topics)
 from bb2_tools.supervisor import LaunchError, ProcessSpec, RestartPolicy, Supervisor, exit_cause
 
 BOAT_STOP_GRACE_S = 60.0  # a boat's launcher stops its graph on SIGINT (its recorder-less end: seconds)
@@ -43,6 +43,7 @@ def _refuse(args: argparse.Namespace) -> None:
                           "serves one boat)")
     if args.external_recorder:
         raise LaunchError("--external-recorder: a fleet file's launch starts the fleet's recorder itself")
+    check_without(args.without, "--without")   # every boat's nodes left out, said once before any boat starts
     check_run_options(args)
 
 
@@ -57,6 +58,8 @@ def boat_command(args: argparse.Namespace, mission: Path, boat: str, domain_id: 
         cmd += ["--params", str(args.params.resolve())]
     for r in args.restart:
         cmd += ["--restart", r]
+    if args.without:
+        cmd += ["--without", args.without]
     if args.compose:
         cmd.append("--compose")
     for g in args.group or []:

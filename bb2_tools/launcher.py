@@ -474,6 +474,34 @@ def compose_groups(groups: Sequence[str] | None) -> list[tuple[str, ...]]:
     return out
 
 
+REPLACEABLE = ("planner", "path_following", "l1_autopilot", "mixer")
+"""The nodes a user may leave out, to run a node of their own in its place (``without:=`` of the launch files): the
+contract's topics are its interface (``bb2_msgs_py.contract``); in lockstep the simulator waits for its answer to
+each step (the first for up to ``startup_timeout_s``), in real time for its first command (``wait_for_commands``)."""
+
+
+def check_without(value: str | Sequence[str], option: str = "without") -> tuple[str, ...]:
+    """The node names of ``value`` (comma-separated, or a sequence) checked against :data:`REPLACEABLE`:
+    :class:`LaunchError` naming an unknown one (with the likely one), one named twice, the simulator (the boat
+    itself) or the recorder (not recording is ``record:=false`` / ``--no-record``)."""
+    import difflib
+
+    names = [n.strip() for n in (value.split(",") if isinstance(value, str) else value) if n.strip()]
+    for n in names:
+        if n == "simulator":
+            raise LaunchError(f"{option}: the simulator is the boat itself and cannot be left out")
+        if n == RECORDER_NODE_NAME:
+            raise LaunchError(f"{option}: leave the recorder out with "
+                              + ("--no-record" if option.startswith("--") else "record:=false"))
+        if n not in REPLACEABLE:
+            close = difflib.get_close_matches(n, REPLACEABLE, 1, 0.6)
+            raise LaunchError(f"{option}: unknown node {n!r}" + (f" (did you mean {close[0]!r}?)" if close else "")
+                              + f"; nodes that may be left out: {', '.join(REPLACEABLE)}")
+        if names.count(n) > 1:
+            raise LaunchError(f"{option}: node {n!r} is named twice")
+    return tuple(sorted(names, key=REPLACEABLE.index))
+
+
 def process_name(group: Sequence[str]) -> str:
     """The name of the process that runs ``group`` (its log file, its restart policy, its reports): the node's
     own for a node alone, ``container`` for every composable node, else the nodes joined by ``+``."""
@@ -494,7 +522,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 policies: Mapping[str, RestartPolicy] | None = None,
                 monitor: GraphMonitor | None = None,
                 groups: Sequence[Sequence[str]] = (), foxglove_port: int | None = None,
-                namespace: str = "", own_recorder: bool = True) -> list[ProcessSpec]:
+                namespace: str = "", own_recorder: bool = True, without: Sequence[str] = ()) -> list[ProcessSpec]:
     """The process specs of the BB2 graph for one mission, in start order.
 
     The planner and the controllers, and in lockstep the simulator, are ``early``: :func:`run_graph`
@@ -513,7 +541,8 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     the boat's topics are /NAMESPACE/bb2/... and /NAMESPACE/clock, so boats of several launches on one
     ``--domain-id`` fly side by side without crosstalk.  ``record`` without ``own_recorder``: the boat is recorded by
     a recorder started elsewhere (a fleet's, :mod:`bb2_tools.fleet_launcher`), which the simulator waits for as for
-    its own (its readers, its acknowledgements on the boat's ``bb2/recorder/ack``).
+    its own (its readers, its acknowledgements on the boat's ``bb2/recorder/ack``).  ``without``: nodes not started
+    (:func:`check_without`), a user's own in their place.
     """
     from bb2_msgs_py.contract import boat_topic
 
@@ -550,6 +579,8 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     grouped = {n: g for g in groups for n in g}
     specs: list[ProcessSpec] = []
     for node in GRAPH_NODES:
+        if node.name in without:
+            continue
         if node.name == "recorder":
             if not record or not own_recorder:
                 continue
@@ -822,6 +853,11 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     p.add_argument("--foxglove", type=int, nargs="?", const=FOXGLOVE_DEFAULT_PORT, default=None, metavar="PORT",
                    help="serve the graph live to Foxglove (WebSocket on 127.0.0.1:PORT, default "
                         f"{FOXGLOVE_DEFAULT_PORT}; Foxglove: Open connection -> Foxglove WebSocket)")
+    p.add_argument("--without", default="", metavar="NODE[,NODE...]",
+                   help=f"leave these nodes out ({', '.join(REPLACEABLE)}), for nodes of your own in their place on "
+                        "the contract's topics, on the run's ROS_DOMAIN_ID (give it with --domain-id): your "
+                        "autopilot, --without l1_autopilot,mixer.  Lockstep waits for their answer to each step "
+                        "(the first up to the simulator's startup_timeout_s, 30 s)")
     p.add_argument("--runner", choices=RUNNERS, default="auto", help="how nodes are started (default auto)")
     p.add_argument("--echo", action="store_true", help="also print every node's output, prefixed")
     p.add_argument("--install-ros-ws", action="store_true",
@@ -882,7 +918,14 @@ def _main(argv: Sequence[str] | None) -> int:
         if args.external_recorder and args.no_record:
             raise LaunchError("--external-recorder (recorded elsewhere) and --no-record (not recorded) contradict")
         groups = compose_groups(args.group if args.group is not None else [] if args.compose else None)
-        policies = parse_restart_policies(args.restart, process_names(groups), args.max_restarts)
+        without = check_without(args.without, "--without")
+        if args.compose and args.group is None and without:  # every composable node but those left out
+            groups = [tuple(n for n in g if n not in without) for g in groups]
+        if clash := [n for g in groups for n in g if n in without]:
+            raise LaunchError(f"--without {','.join(clash)} and --group {','.join(clash)}: a node left out cannot be "
+                              "composed")
+        policies = parse_restart_policies(args.restart, [n for n in process_names(groups) if n not in without],
+                                          args.max_restarts)
         check_restart_policies(policies, groups)
         mission = args.mission.resolve()
         params = args.params.resolve() if args.params else None
@@ -918,12 +961,17 @@ def _main(argv: Sequence[str] | None) -> int:
     env[PUBLISHED_DIR_ENV] = str(log_dir / "published")  # each node process's counts, compared with the bag
     specs = graph_specs(mission, run_dir, mode=args.mode, params=params, record=not args.no_record,
                         runner=args.runner, policies=policies, monitor=monitor, groups=groups,
-                        foxglove_port=args.foxglove, namespace=namespace, own_recorder=not args.external_recorder)
+                        foxglove_port=args.foxglove, namespace=namespace, own_recorder=not args.external_recorder,
+                        without=without)
     echo = (lambda name, line: print(f"[{name}] {line}", file=sys.stderr, flush=True)) if args.echo else None
     print(f"[bb2-launch] mission {mission} | mode {args.mode} | ROS_DOMAIN_ID={monitor.domain_id} | "
           + (f"namespace /{namespace} | " if namespace else "") + f"run {run_dir}", file=sys.stderr, flush=True)
     if mission_warning:
         print(f"[bb2-launch] warning: {mission_warning}", file=sys.stderr, flush=True)
+    if without:
+        print(f"[bb2-launch] without: {', '.join(without)} (not started: your nodes answer in their place on "
+              f"ROS_DOMAIN_ID={monitor.domain_id}" + (f", in /{namespace}" if namespace else "") + ")",
+              file=sys.stderr, flush=True)
     for g in groups:
         print(f"[bb2-launch] composed: process '{process_name(g)}' runs {', '.join(g)}", file=sys.stderr, flush=True)
     if args.foxglove is not None:

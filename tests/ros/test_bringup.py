@@ -137,6 +137,37 @@ def test_ros2_launch_compose_true_runs_the_nodes_in_one_container_and_flies_the_
         assert np.max(np.abs(np.array(got[t][1:13]) - x)) <= 1e-9, t
 
 
+def test_without_leaves_a_node_out_for_a_users_own_node_in_its_place(ws):
+    """``without:=mixer``: the launch starts every node but the mixer, and a mixer the user runs with ``ros2 run`` on
+    the same domain (here ours, started after the launch, as a user's own node would be) answers in its place: the
+    simulator waits for its first answer, and the run is the library runner's, as with the whole graph."""
+    import numpy as np
+
+    env, install, tmp = ws
+    domain = claimed_domain()
+    p = launch(ws, domain, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "without:=mixer",
+               f"bag:={tmp / 'without_mixer'}")
+    time.sleep(2.0)  # the user's node comes up after the launch's
+    own = subprocess.Popen(["bash", "-c", f"source {install / 'setup.bash'} && exec ros2 run bb2_ros mixer --ros-args "
+                            f"-p mission_file:={tmp / 'short.yaml'} -p use_sim_time:=true"],
+                           cwd=tmp, env=dict(env, ROS_DOMAIN_ID=str(domain)), stdout=subprocess.DEVNULL,
+                           stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        out = finish(p, 180)
+    finally:
+        os.killpg(own.pid, signal.SIGINT)
+        own.wait(30)
+    assert p.returncode == 0, out[-3000:]
+    assert "| without mixer (your nodes in their place)" in out, out[-3000:]
+    assert "[mixer" not in out and out.count("process started with pid") == 5, out[-3000:]  # ours never started
+    assert "no answer to step" not in out, out[-3000:]  # the user's mixer answered every step
+    ref = {row[0]: row[1:] for row in library_trajectory(tmp / "short.yaml")}
+    got = states(tmp / "without_mixer")
+    assert len(got) == len(ref) == 51, (len(got), len(ref))
+    for t, x in ref.items():
+        assert np.max(np.abs(np.array(got[t][1:13]) - x)) <= 1e-9, t
+
+
 def test_ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished(ws):
     env, install, tmp = ws
     domain = claimed_domain()
@@ -254,7 +285,11 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("fleet.launch.py", [f"missions:={tmp / 'short.yaml'},{tmp / 'bad_mission.yaml'}"],
              "duration_s must be > 0 s, got -5.0"),
             ("bb2_graph.launch.py", ["record:=true", f"bag:={tmp}"],  # the recorder refused it once nodes were up
-             f"bag directory {tmp} exists and is not empty (another run has it)")):
+             f"bag directory {tmp} exists and is not empty (another run has it)"),
+            ("bb2_graph.launch.py", ["without:=mixr"], "launch argument without: unknown node 'mixr' (did you mean "
+             "'mixer'?); nodes that may be left out: planner, path_following, l1_autopilot, mixer"),
+            ("bb2_graph.launch.py", ["without:=simulator"], "the simulator is the boat itself"),
+            ("fleet.launch.py", ["without:=mixer,mixer"], "launch argument without: node 'mixer' is named twice")):
         p = launch(ws, domain, launch_file, *args, *([] if "record:=true" in args else ["record:=false"]))
         out = finish(p, 60)
         assert p.returncode == 1, (args, out[-3000:])

@@ -696,6 +696,66 @@ def test_bb2_launch_flies_a_short_mission_and_records_the_bag(tmp_path, bb2_grap
         assert "---- exited: exit code 0" in log, (node.name, log[-2000:])
 
 
+@pytest.mark.parametrize("args, said", [
+    (["--without", "mixr"], "--without: unknown node 'mixr' (did you mean 'mixer'?); nodes that may be left out: "
+                            "planner, path_following, l1_autopilot, mixer"),
+    (["--without", "simulator"], "--without: the simulator is the boat itself"),
+    (["--without", "recorder"], "--without: leave the recorder out with --no-record"),
+    (["--without", "mixer,mixer"], "--without: node 'mixer' is named twice"),
+    (["--without", "mixer", "--group", "l1_autopilot,mixer"], "a node left out cannot be composed"),
+    (["--without", "mixer", "--restart", "mixer=restart"], "unknown node"),   # no process of its own to restart
+])
+def test_without_refuses_what_cannot_be_left_out(tmp_path, capsys, args, said):
+    assert L.main([str(REPO / "missions" / "straight.yaml"), *args]) == 2
+    err = capsys.readouterr().err
+    assert said in err and err.count("\n") == 1, err
+
+
+def test_without_leaves_the_nodes_out_of_the_graph_and_of_a_composed_process(tmp_path):
+    mission = REPO / "missions" / "straight.yaml"
+    names = [s.name for s in L.graph_specs(mission, tmp_path / "run", without=("l1_autopilot", "mixer"))]
+    assert sorted(names) == ["path_following", "planner", "recorder", "simulator"], names
+    assert L.check_without("mixer, l1_autopilot") == ("l1_autopilot", "mixer")  # in the graph's order
+    args = L.parse_args([str(mission), "--without", "mixer"])
+    from bb2_tools.fleet_launcher import boat_command
+
+    assert boat_command(args, mission, "boat1", 7, tmp_path)[-2:] == ["--without", "mixer"]  # every boat's
+
+
+@pytest.mark.ros
+def test_bb2_launch_without_the_mixer_flies_with_a_users_own_in_its_place(tmp_path, bb2_graph_available):
+    """``--without mixer``: a mixer started by the user on the run's ``--domain-id`` (ours, here, in a process of
+    its own started first) answers every step in its place, and the run equals the library runner's."""
+    import numpy as np
+
+    from bb2_tools.bag_run import read_bag
+    from rosenv import library_trajectory
+
+    domain = claimed_domain()
+    mission = _short_mission(tmp_path, 3.0)
+    env = dict(ros_env(), ROS_DOMAIN_ID=str(domain))
+    own = subprocess.Popen([sys.executable, "-m", "bb2_ros.mixer", "--ros-args", "-p", f"mission_file:={mission}",
+                            "-p", "use_sim_time:=true"], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
+                           stderr=subprocess.DEVNULL)
+    try:
+        p = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--without", "mixer",
+                            "--domain-id", str(domain), "--out", str(tmp_path / "run"), "--end-at", "simulator",
+                            "--timeout", "150"], cwd=tmp_path, env=ros_env(), capture_output=True, text=True,
+                           timeout=200)
+    finally:
+        own.send_signal(signal.SIGINT)
+        own.wait(30)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert f"without: mixer (not started: your nodes answer in their place on ROS_DOMAIN_ID={domain})" in p.stderr
+    assert not (tmp_path / "run" / "logs" / "mixer.log").exists()  # ours was never started
+    log = (tmp_path / "run" / "logs" / "simulator.log").read_text()
+    assert "no answer to step" not in log, log[-2000:]  # the user's mixer answered every step
+    ref = library_trajectory(mission)
+    run = read_bag(tmp_path / "run")
+    assert run.x.shape == (len(ref), 12) and not run.warnings, (run.x.shape, len(ref), run.warnings)
+    assert np.max(np.abs(run.x - ref[:, 1:])) <= 1e-9
+
+
 @pytest.mark.ros
 def test_bb2_launch_boats_in_namespaces_share_a_domain_without_crosstalk(tmp_path, bb2_graph_available):
     """Issue 13, point 4: two ``bb2-launch --namespace`` of different missions on one ``--domain-id`` make one graph

@@ -15,6 +15,10 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
   foxglove     true | false: serve every topic live to Foxglove (``ros2 run bb2_tools foxglove_bridge``, a
                WebSocket on 127.0.0.1:foxglove_port; bb2-launch --foxglove)
   foxglove_port  the Foxglove WebSocket port (default 8765)
+  without      '' or NODE[,NODE...] of planner, path_following, l1_autopilot, mixer: those nodes are not started, for
+               nodes of your own in their place on the contract's topics (your autopilot: without:=l1_autopilot,mixer;
+               run it with ``ros2 run`` on the same ROS_DOMAIN_ID). In lockstep the simulator waits for the answer to
+               each step (the first up to startup_timeout_s, 30 s), in real time for the first command.
 
 It starts what ``bb2-launch`` starts — simulator, planner, path_following, l1_autopilot, mixer and (record) the
 recorder, each its own process, the recorder and the planner at nice +10 — with the same parameters: the
@@ -49,7 +53,8 @@ from launch_ros.substitutions import ExecutableInPackage
 
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
-from bb2_tools.launcher import LaunchError, check_foxglove_port, check_mission, check_params_file
+from bb2_tools.launcher import (LaunchError, check_foxglove_port, check_mission, check_params_file,
+                                check_without)
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
@@ -65,6 +70,8 @@ ARGUMENTS = {
     "compose": ("false", "true | false: planner, controllers and simulator in one process (the container)"),
     "foxglove": ("false", "true | false: serve every topic live to Foxglove (WebSocket on 127.0.0.1:foxglove_port)"),
     "foxglove_port": ("8765", "the Foxglove WebSocket port"),
+    "without": ("", "'' or NODE[,NODE...] of planner, path_following, l1_autopilot, mixer: left out, for nodes of "
+                    "your own in their place (your autopilot: without:=l1_autopilot,mixer)"),
 }
 
 
@@ -158,11 +165,12 @@ def container_arguments(nodes: list[tuple[str, dict]], params: list[str], ns: st
 
 def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, namespace: str, params_file: str,
          stop_launch: bool = True, compose: bool = False, foxglove_port: int | None = None,
-         own_recorder: bool = True) -> list:
+         own_recorder: bool = True, without: tuple[str, ...] = ()) -> list:
     """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch;
     ``compose``: every node but the recorder in one container process; ``foxglove_port``: the live Foxglove
     server on that port; ``record`` without ``own_recorder``: recorded by a recorder of the caller's, a fleet's
-    (:func:`fleet_recorder`), which the simulator waits for as for its own)."""
+    (:func:`fleet_recorder`), which the simulator waits for as for its own; ``without``: nodes not started, a
+    user's own in their place, :func:`bb2_tools.launcher.check_without`)."""
     if time_mode not in ("lockstep", "realtime"):
         raise RuntimeError(f"launch argument time_mode must be lockstep or realtime, got {time_mode!r}")
     ns = namespace.strip("/")
@@ -190,7 +198,8 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     sim_values = {"use_sim_time": False, "time_mode": time_mode, "exit_at_end": True, "end_at_progress": True,
                   "wait_for_readers": record, "wait_for_commands": time_mode == "realtime",
                   "recorder_ack_window": RECORDER_ACK_WINDOW if record and time_mode == "lockstep" else 0}
-    controllers = [("planner", True), ("path_following", False), ("l1_autopilot", False), ("mixer", False)]
+    controllers = [(exe, bg) for exe, bg in (("planner", True), ("path_following", False), ("l1_autopilot", False),
+                                             ("mixer", False)) if exe not in without]
     # in real time the controllers' answers do not wait for a core, nor the simulator's reception of them (as
     # bb2-launch sets them)
     rt = {"callback_priority": CALLBACK_PRIORITY_REALTIME} if time_mode == "realtime" else {}
@@ -270,6 +279,10 @@ def _graph(context):
         raise RuntimeError(f"bag directory {bag} " + ("exists and is not empty (another run has it)" if bag.is_dir()
                                                       else "is a file") + ": choose another bag:=, or leave bag:='' "
                            "for a new one under bag_dir")
+    try:
+        without = check_without(a["without"], "launch argument without")
+    except LaunchError as exc:
+        raise RuntimeError(str(exc)) from None
     fox = flag(a["foxglove"], "foxglove")
     try:
         fox_port = int(a["foxglove_port"]) if fox else None
@@ -281,10 +294,12 @@ def _graph(context):
         except LaunchError as exc:
             raise RuntimeError(str(exc)) from None
     acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
-                params_file=params_file, compose=flag(a["compose"], "compose"), foxglove_port=fox_port)
+                params_file=params_file, compose=flag(a["compose"], "compose"), foxglove_port=fox_port,
+                without=without)
     return [*([LogInfo(msg=f"[bb2_bringup] warning: {warning}")] if warning else []), LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
                         + (" | composed" if flag(a["compose"], "compose") else "")
                         + (f" | namespace /{a['namespace'].strip('/')}" if a["namespace"] else "")
+                        + (f" | without {', '.join(without)} (your nodes in their place)" if without else "")
                         + (f" | bag {bag}" if bag else " | not recorded")
                         + (f" | foxglove ws://127.0.0.1:{fox_port}" if fox else "")), *acts]
 

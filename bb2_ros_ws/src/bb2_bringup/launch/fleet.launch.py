@@ -14,6 +14,8 @@ with its own controllers (deterministic: a boat's run equals the same mission fl
                ``bb2-analyze`` of it reports every boat)
   bag_dir      default bags
   params_file  the graph's params file
+  without      '' or NODE[,NODE...]: those nodes of every boat are not started, yours answer in their place in
+               each boat's namespace (as in bb2_graph.launch.py)
 
 The launch ends when every boat's simulator has ended its run, with exit code 1 when any boat's simulator exited
 with an error (the other boats fly on to their end); any other node of a boat, or the fleet's recorder, that dies
@@ -47,6 +49,7 @@ ARGUMENTS = {
     "record": ("true", "true | false: one bag of every boat, <bag_dir>/fleet_<date>"),
     "bag_dir": ("bags", "where the fleet's bags go"),
     "params_file": (graph.ARGUMENTS["params_file"][0], "the graph's ROS 2 params file"),
+    "without": ("", "'' or NODE[,NODE...]: every boat's nodes left out, yours in their place (bb2_graph.launch.py)"),
 }
 
 
@@ -69,6 +72,10 @@ def _fleet(context):
         if len(missions) != len(boats):
             raise RuntimeError(f"{len(missions)} missions for {len(boats)} boats")
     params_file = graph.checked_params_file(a["params_file"])
+    try:
+        without = graph.check_without(a["without"], "launch argument without")
+    except graph.LaunchError as exc:
+        raise RuntimeError(str(exc)) from None
     checked = [(ns, graph.mission_file(m)) for ns, m in zip(boats, missions)]
     warnings = [(ns, graph.checked_mission(mission)) for ns, mission in checked]  # every boat's, before any starts
     actions, sims = [], []
@@ -79,7 +86,7 @@ def _fleet(context):
                     graph.watch(recorder, "the fleet's recorder", lambda: len(ended) == len(sims))]
     for (ns, mission), (_ns, warning) in zip(checked, warnings):
         acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=None, namespace=ns,
-                          params_file=params_file, stop_launch=False, own_recorder=False)
+                          params_file=params_file, stop_launch=False, own_recorder=False, without=without)
         sims.append(acts[-1])
         actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}"),
                     *([LogInfo(msg=f"[bb2_bringup] warning: /{ns}: {warning}")] if warning else []), *acts]
