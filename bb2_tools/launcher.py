@@ -135,9 +135,9 @@ def node_command(node: GraphNode, runner: str = "auto") -> list[str]:
     if runner == "lib":
         raise LaunchError(f"--runner lib: no {node.package}/lib/{node.package}/{node.executable} in the "
                           "ament index (AMENT_PREFIX_PATH); run bb2_ros_ws/install_into_venv.py")
-    module, func = node.entry_point.split(":")
-    code = (f"import sys; sys.argv[0] = {node.executable!r}; from {module} import {func}; "
-            f"sys.exit({func}())")
+    # as the console scripts start it (bb2_ros.entry: a SIGINT while it imports ends it quietly)
+    code = (f"import sys; sys.argv[0] = {node.executable!r}; from bb2_ros.entry import run; "
+            f"sys.exit(run({node.entry_point!r}))")
     return [sys.executable, "-c", code]
 
 

@@ -128,11 +128,15 @@ def test_console_scripts_are_the_graph_executables_and_resolve():
     for pkg in PACKAGES:
         for exe, ep in ws_tool.console_scripts(ws_tool.read_setup(WS / "src" / pkg)).items():
             found[(pkg, exe)] = ep
-    assert found == EXECUTABLES | CONTAINER_EXECUTABLE | FOXGLOVE_EXECUTABLE
+    every = EXECUTABLES | CONTAINER_EXECUTABLE | FOXGLOVE_EXECUTABLE
+    # each console script is its package's entry (<pkg>.entry:<exe>: quiet on a SIGINT while it imports), which
+    # runs the node's main
+    assert found == {(pkg, exe): f"{pkg}.entry:{exe}" for pkg, exe in every}
+    assert {(pkg, exe): importlib.import_module(f"{pkg}.entry").TARGETS[exe] for pkg, exe in every} == every
     assert {(n.package, n.executable): n.entry_point for n in GRAPH_NODES} == EXECUTABLES
     assert {(CONTAINER.package, CONTAINER.executable): CONTAINER.entry_point} == CONTAINER_EXECUTABLE
     assert {(FOXGLOVE.package, FOXGLOVE.executable): FOXGLOVE.entry_point} == FOXGLOVE_EXECUTABLE
-    for (pkg, exe), ep in found.items():
+    for (pkg, exe), ep in [*found.items(), *every.items()]:
         module, func = ep.split(":")
         assert module.split(".")[0] == pkg, f"{pkg}/{exe} must run code of its own package"
         obj = getattr(importlib.import_module(module), func)
@@ -228,11 +232,10 @@ def test_install_into_prefix_gives_what_ros2_run_looks_for(tmp_path):
     for pkg in PACKAGES:
         assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / pkg).is_file()
         assert (prefix / "share" / pkg / "package.xml").read_text() == (WS / "src" / pkg / "package.xml").read_text()
-    for (pkg, exe), ep in EXECUTABLES.items():
+    for pkg, exe in EXECUTABLES:
         script = prefix / "lib" / pkg / exe
         assert os.access(script, os.X_OK) and script.read_text().startswith(f"#!{sys.executable}\n")
-        module, func = ep.split(":")
-        assert f"from {module} import {func}" in script.read_text()
+        assert f"from {pkg}.entry import {exe}" in script.read_text()
     for pkg in PACKAGES:  # no second copy of the code (the editable install provides it)
         assert not list(prefix.glob(f"lib/python3*/site-packages/{pkg}")), pkg
     env = dict(os.environ, AMENT_PREFIX_PATH=f"{prefix}{os.pathsep}{sys.prefix}")

@@ -140,8 +140,7 @@ def test_python_runner_builds_entry_point_commands():
     for node in L.GRAPH_NODES:
         cmd = L.node_command(node, "python")
         assert cmd[0] == sys.executable and cmd[1] == "-c"
-        module, func = node.entry_point.split(":")
-        assert f"from {module} import {func}" in cmd[2]
+        assert f"from bb2_ros.entry import run; sys.exit(run({node.entry_point!r}))" in cmd[2]
     with pytest.raises(S.LaunchError):
         L.node_command(L.GRAPH_NODES[0], "nonsense")
 

@@ -5,10 +5,10 @@ from pathlib import Path
 
 setup_package = runpy.run_path(str(Path(__file__).resolve().parents[2] / 'ament_setup.py'))['setup_package']
 setup_package(__file__, console_scripts=[
-    'simulator = bb2_ros.simulator:main',
-    'planner = bb2_ros.planner:main',
-    'path_following = bb2_ros.path_following:main',
-    'l1_autopilot = bb2_ros.l1_autopilot:main',
-    'mixer = bb2_ros.mixer:main',
-    'container = bb2_ros.container:main',
+    'simulator = bb2_ros.entry:simulator',
+    'planner = bb2_ros.entry:planner',
+    'path_following = bb2_ros.entry:path_following',
+    'l1_autopilot = bb2_ros.entry:l1_autopilot',
+    'mixer = bb2_ros.entry:mixer',
+    'container = bb2_ros.entry:container',
 ])

@@ -5,6 +5,6 @@ from pathlib import Path
 
 setup_package = runpy.run_path(str(Path(__file__).resolve().parents[2] / 'ament_setup.py'))['setup_package']
 setup_package(__file__, console_scripts=[
-    'recorder = bb2_tools.recorder:main',
-    'foxglove_bridge = bb2_tools.foxglove_live:main',
+    'recorder = bb2_tools.entry:recorder',
+    'foxglove_bridge = bb2_tools.entry:foxglove_bridge',
 ], share={'missions': ['missions/*.yaml']})
