@@ -70,6 +70,7 @@ class GraphMonitor:
         self.progress: float | None = None
         self.status_end = False  # the simulator's status says the mission duration is over
         self.sim_error: str | None = None  # the simulator's status says it stopped on an error
+        self.failsafe: str | None = None  # the simulator's last status: stepping on the failsafe, and why
         self.end_at = end_at
         self._samples: collections.deque[tuple[float, float]] = collections.deque()
         self._first: tuple[float, float] | None = None  # the first /clock (start-up handshake at t0)
@@ -176,6 +177,8 @@ class GraphMonitor:
             except (KeyError, ValueError):
                 pass
             state = vals.get("state", "").lower()
+            self.failsafe = ((vals.get("failsafe_reason") or "no valid command")
+                             if vals.get("failsafe") == "true" and state == "running" else None)
             if state in END_WORDS:
                 self.status_end = True
             elif state == "diverged":
@@ -311,9 +314,11 @@ def free_domain_id(*, rng: random.Random | None = None, tries: int = 8, listen_s
 
 
 def format_status(sim_time_s: float | None, progress: float | None, rtf: float | None,
-                  up: int, total: int, wall_s: float) -> str:
-    """The one progress line."""
+                  up: int, total: int, wall_s: float, failsafe: str | None = None) -> str:
+    """The one progress line (``failsafe``: why the simulator steps on its failsafe, said at its end: a controller
+    silent, or with ``--without`` no node of the user's answering)."""
     t = "--" if sim_time_s is None else f"{sim_time_s:8.2f} s"
     p = "--" if progress is None else f"{100.0 * progress:5.1f} %"
     r = "--" if rtf is None else f"{rtf:6.1f}x"
-    return f"[bb2-launch] sim {t} | progress {p} | RTF {r} | nodes {up}/{total} | wall {wall_s:6.1f} s"
+    return (f"[bb2-launch] sim {t} | progress {p} | RTF {r} | nodes {up}/{total} | wall {wall_s:6.1f} s"
+            + (f" | FAILSAFE: {failsafe}" if failsafe else ""))

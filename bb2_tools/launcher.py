@@ -291,7 +291,7 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 # its start-up, before the first period, still shows where it stopped and how many nodes ran)
                 line = format_status(monitor.sim_time_s, monitor.progress, monitor.rtf(),
                                      sum(sup.specs[n].nodes for n in sup.running()),
-                                     sum(sup.specs[n].nodes for n in sup.order), now - t0)
+                                     sum(sup.specs[n].nodes for n in sup.order), now - t0, monitor.failsafe)
                 print("\r\033[K" + line if tty else line, end="" if tty else "\n", file=out, flush=True)
                 last_status = now
             if reason:
@@ -970,8 +970,8 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"[bb2-launch] warning: {mission_warning}", file=sys.stderr, flush=True)
     if without:
         print(f"[bb2-launch] without: {', '.join(without)} (not started: your nodes answer in their place on "
-              f"ROS_DOMAIN_ID={monitor.domain_id}" + (f", in /{namespace}" if namespace else "") + ")",
-              file=sys.stderr, flush=True)
+              f"ROS_DOMAIN_ID={monitor.domain_id}" + (f", in /{namespace}" if namespace else "")
+              + "; until they do, the status line says FAILSAFE)", file=sys.stderr, flush=True)
     for g in groups:
         print(f"[bb2-launch] composed: process '{process_name(g)}' runs {', '.join(g)}", file=sys.stderr, flush=True)
     if args.foxglove is not None:

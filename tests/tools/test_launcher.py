@@ -745,7 +745,8 @@ def test_bb2_launch_without_the_mixer_flies_with_a_users_own_in_its_place(tmp_pa
         own.send_signal(signal.SIGINT)
         own.wait(30)
     assert p.returncode == 0, p.stderr[-3000:]
-    assert f"without: mixer (not started: your nodes answer in their place on ROS_DOMAIN_ID={domain})" in p.stderr
+    assert f"without: mixer (not started: your nodes answer in their place on ROS_DOMAIN_ID={domain}" in p.stderr
+    assert "| FAILSAFE:" not in p.stderr  # the user's mixer answered from the first step
     assert not (tmp_path / "run" / "logs" / "mixer.log").exists()  # ours was never started
     log = (tmp_path / "run" / "logs" / "simulator.log").read_text()
     assert "no answer to step" not in log, log[-2000:]  # the user's mixer answered every step
@@ -753,6 +754,22 @@ def test_bb2_launch_without_the_mixer_flies_with_a_users_own_in_its_place(tmp_pa
     run = read_bag(tmp_path / "run")
     assert run.x.shape == (len(ref), 12) and not run.warnings, (run.x.shape, len(ref), run.warnings)
     assert np.max(np.abs(run.x - ref[:, 1:])) <= 1e-9
+
+
+@pytest.mark.ros
+def test_the_status_line_says_when_the_simulator_steps_on_its_failsafe(tmp_path, bb2_graph_available):
+    """``--without mixer`` and no node of the user's: nothing answers, the lockstep simulator steps on its failsafe
+    (here after 0.2 s a step, its first after 2 s), and the status line says so, with the simulator's reason."""
+    mission = _short_mission(tmp_path, 1.0)
+    params = tmp_path / "fast_failsafe.yaml"
+    params.write_text("simulator:\n  ros__parameters:\n    startup_timeout_s: 2.0\n    lockstep_timeout_s: 0.2\n")
+    p = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--without", "mixer", "--params",
+                        str(params), "--status-period", "0.5", "--no-record", "--timeout", "100"], cwd=tmp_path,
+                       env=ros_env(), capture_output=True, text=True, timeout=150)
+    assert p.returncode == 0 and "mission complete" in p.stderr, p.stderr[-3000:]
+    lines = [ln for ln in p.stderr.splitlines() if ln.startswith("[bb2-launch] sim ")]
+    assert any(ln.endswith("| FAILSAFE: lockstep timeout: neutral planes, this step's propeller") for ln in lines), \
+        p.stderr[-3000:]
 
 
 @pytest.mark.ros
