@@ -315,8 +315,8 @@ def free_domain_id(*, rng: random.Random | None = None, tries: int = 8, listen_s
 
 def format_status(sim_time_s: float | None, progress: float | None, rtf: float | None,
                   up: int, total: int, wall_s: float, failsafe: str | None = None) -> str:
-    """The one progress line (``failsafe``: why the simulator steps on its failsafe, said at its end: a controller
-    silent, or with ``--without`` no node of the user's answering)."""
+    """The one progress line; ``failsafe`` (why the simulator steps on its failsafe: a controller silent, or with
+    ``--without`` no node of the user's answering yet) is appended."""
     t = "--" if sim_time_s is None else f"{sim_time_s:8.2f} s"
     p = "--" if progress is None else f"{100.0 * progress:5.1f} %"
     r = "--" if rtf is None else f"{rtf:6.1f}x"

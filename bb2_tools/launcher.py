@@ -656,7 +656,7 @@ FOXGLOVE_DEFAULT_PORT = 8765
 
 def check_foxglove_port(port: int, option: str = "--foxglove") -> None:
     """Refuse, before anything starts, a Foxglove port out of range or already taken on 127.0.0.1
-    (:class:`LaunchError`; ``option``: how the user gave it, ``foxglove_port:=`` in the launch file)."""
+    (:class:`LaunchError`; ``option``: how the user gave it, named in the message)."""
     import socket
 
     if not 1 <= port <= 65535:

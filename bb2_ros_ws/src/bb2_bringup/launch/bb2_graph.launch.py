@@ -27,14 +27,14 @@ params file, then the mission, the time mode, use_sim_time (the simulator is the
 waits for a stalled recorder rather than lose messages), in real time ``wait_for_commands`` (the clock starts once
 the controllers answer, not on the start-up failsafe).  The simulator ends the run where bb2-launch does (the
 mission duration, or ``end_at_progress``: the path flown) and exits; its exit stops the whole launch (the
-recorder finishes its bag on the SIGINT); a node that dies before the run's end stops the graph and fails the launch
-(without a controller the simulator would step on held planes, one step a second; without the recorder it waits
-for a reader), the Foxglove server excepted (said; the run goes on); a simulator that exits with an error (the run failed: the boat diverged, or
-the mission or a parameter was refused) makes ``ros2 launch`` exit 1.  The mission and the params file are checked before any node starts, as
-bb2-launch checks them (a params file's unknown node or parameter is refused: ROS would ignore it).  Ctrl-C stops
-every node cleanly.  With ``compose:=true`` the same nodes
-with the same arguments run in one ``container`` process (each node's ROS arguments apply to it alone), whose
-exit ends the launch.
+recorder finishes its bag on the SIGINT).  A simulator that exits with an error (the run failed: the boat diverged,
+or a parameter's value was refused) makes ``ros2 launch`` exit 1.  A node that dies before the run's end stops the
+graph and fails the launch too (without a controller the simulator would step on held planes, one step a second;
+without the recorder it waits for a reader); the Foxglove server alone may go (said; the run goes on).  The
+mission, the params file (a node or a parameter the graph does not have: ROS would ignore it), the bag directory
+and the Foxglove port are checked before any node starts, as bb2-launch checks them.  Ctrl-C stops every node
+cleanly.  With ``compose:=true`` the same nodes with the same arguments run in one ``container`` process (each
+node's ROS arguments apply to it alone), whose exit ends the launch.
 """
 from __future__ import annotations
 
@@ -296,12 +296,13 @@ def _graph(context):
     acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
                 params_file=params_file, compose=flag(a["compose"], "compose"), foxglove_port=fox_port,
                 without=without)
-    return [*([LogInfo(msg=f"[bb2_bringup] warning: {warning}")] if warning else []), LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
-                        + (" | composed" if flag(a["compose"], "compose") else "")
-                        + (f" | namespace /{a['namespace'].strip('/')}" if a["namespace"] else "")
-                        + (f" | without {', '.join(without)} (your nodes in their place)" if without else "")
-                        + (f" | bag {bag}" if bag else " | not recorded")
-                        + (f" | foxglove ws://127.0.0.1:{fox_port}" if fox else "")), *acts]
+    said = LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
+                       + (" | composed" if flag(a["compose"], "compose") else "")
+                       + (f" | namespace /{a['namespace'].strip('/')}" if a["namespace"] else "")
+                       + (f" | without {', '.join(without)} (your nodes in their place)" if without else "")
+                       + (f" | bag {bag}" if bag else " | not recorded")
+                       + (f" | foxglove ws://127.0.0.1:{fox_port}" if fox else ""))
+    return [*([LogInfo(msg=f"[bb2_bringup] warning: {warning}")] if warning else []), said, *acts]
 
 
 def generate_launch_description():
