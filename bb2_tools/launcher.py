@@ -34,6 +34,10 @@ alone); its recorder writes the boat's topics under the contract's names (``/bb2
 single boat's, its frames prefixed) and leaves ``/diagnostics`` (every boat's) out; the run directory ends in
 ``_NAME``.
 
+Your node in place of ours (``--without NODE[,NODE...]``: ``planner``, ``path_following``, ``l1_autopilot``,
+``mixer``): those nodes are not started; yours, started on the run's ``--domain-id``, answers in their place on the
+contract's topics.  Until it does, the simulator steps on its failsafe and the status line says ``FAILSAFE``.
+
 A fleet file (``bb2-launch FLEET.yaml``, :mod:`bb2_mission.fleet`): every boat flown as ``--namespace BOAT`` on one
 domain, one recorder for all boats into one bag (:mod:`bb2_tools.fleet_launcher`, dispatched by the command,
 :mod:`bb2_tools.launch_cli`; ``--external-recorder`` is how each boat's launch is told its recorder runs elsewhere).
