@@ -703,6 +703,9 @@ def test_bb2_launch_flies_a_short_mission_and_records_the_bag(tmp_path, bb2_grap
     (["--without", "mixer,mixer"], "--without: node 'mixer' is named twice"),
     (["--without", "mixer", "--group", "l1_autopilot,mixer"], "a node left out cannot be composed"),
     (["--without", "mixer", "--restart", "mixer=restart"], "unknown node"),   # no process of its own to restart
+    # --compose puts every composable node but those left out into one process
+    (["--compose", "--without", "mixer", "--restart", "container=stop"],
+     "--restart: unknown node 'container'; nodes: recorder, planner+path_following+l1_autopilot+simulator"),
 ])
 def test_without_refuses_what_cannot_be_left_out(tmp_path, capsys, args, said):
     assert L.main([str(REPO / "missions" / "straight.yaml"), *args]) == 2
