@@ -771,8 +771,8 @@ def test_the_status_line_says_when_the_simulator_steps_on_its_failsafe(tmp_path,
                        env=ros_env(), capture_output=True, text=True, timeout=150)
     assert p.returncode == 0 and "mission complete" in p.stderr, p.stderr[-3000:]
     lines = [ln for ln in p.stderr.splitlines() if ln.startswith("[bb2-launch] sim ")]
-    assert any(ln.endswith("| FAILSAFE: lockstep timeout: neutral planes, this step's propeller") for ln in lines), \
-        p.stderr[-3000:]
+    # (its planes neutral: none ever came; its propeller this step's, or held when the autopilot was late too)
+    assert any("| FAILSAFE: lockstep timeout: neutral planes, " in ln for ln in lines), p.stderr[-3000:]
 
 
 @pytest.mark.ros
