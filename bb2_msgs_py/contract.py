@@ -241,6 +241,7 @@ AUTOPILOT = "l1_autopilot"
 MIXER = "mixer"
 RECORDER = "recorder"
 EXTERNAL = "(external tools)"
+EVERY_NODE = "(every node)"   # a publisher: each node of the graph publishes its own status there
 
 CONTRACT: tuple[TopicSpec, ...] = (
     TopicSpec("/clock", "rosgraph_msgs/msg/Clock", "clock", "-", "s (sim time)", SIM,
@@ -288,7 +289,7 @@ CONTRACT: tuple[TopicSpec, ...] = (
               "m: x along track, y cross track (left), z vertical (up)", PATHF, (RECORDER,),
               "vehicle position minus closest path point, in the path frame"),
     TopicSpec("/bb2/mission/progress", "std_msgs/msg/Float64", "command", "-", "1 (0..1)", PATHF,
-              (RECORDER,), "fraction of the path length travelled"),
+              (SIM, RECORDER), "fraction of the path length travelled (the simulator reads it with end_at_progress)"),
     TopicSpec("/bb2/autopilot/vh_cmd", "sensor_msgs/msg/JointState", "command", "base_link",
               "rad (position of delta_V, delta_H)", AUTOPILOT, (MIXER, RECORDER),
               "virtual vertical/horizontal plane commands"),
@@ -298,10 +299,10 @@ CONTRACT: tuple[TopicSpec, ...] = (
               "the sea and current of the run, latched: a run's sea can be rebuilt from its bag alone "
               "(bb2_sim.environment.environment_from_description)"),
     TopicSpec("/bb2/status", "diagnostic_msgs/msg/DiagnosticArray", "status", "-",
-              "key/values (mode, failsafe, rates, overruns)", SIM, (RECORDER,),
+              "key/values (mode, failsafe, rates, overruns)", EVERY_NODE, (RECORDER,),
               "what the simulator (and each node) is doing"),
     TopicSpec("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", "status", "-",
-              "key/values, as /bb2/status", SIM, (RECORDER, EXTERNAL),
+              "key/values, as /bb2/status", EVERY_NODE, (RECORDER, EXTERNAL),
               "the same statuses on the standard ROS diagnostics topic (rqt_robot_monitor, diagnostic_aggregator)"),
     # the sensor models (bb2_sim.sensors; the mission's sensors: block): measurements with honest covariances,
     # each at its own rate, stamped with its time of validity, in its mounting frame (SENSOR_FRAMES)
@@ -361,6 +362,15 @@ def topic(name: str) -> TopicSpec:
         return _BY_NAME[name]
     except KeyError:
         raise ContractError(f"unknown topic {name!r}; the contract has: {', '.join(_BY_NAME)}") from None
+
+
+def node_interface(node: str) -> tuple[list[TopicSpec], list[TopicSpec]]:
+    """What graph node ``node`` publishes and what it may read, by the contract: what a node of a user's own in its
+    place (``bb2-launch --without``) publishes and reads.  The statuses every node publishes are left out;
+    some inputs are read only in some settings (``/bb2/odom`` with ``state_source: odometry``, ``/bb2/nav/...`` with
+    ``navigation: sensors``)."""
+    return ([t for t in CONTRACT if t.publisher == node and not t.bag_only],
+            [t for t in CONTRACT if node in t.subscribers and not t.bag_only])
 
 
 def select_topics(patterns: list[str] | None = None, *, include_bag_only: bool = False) -> list[TopicSpec]:

@@ -973,9 +973,16 @@ def _main(argv: Sequence[str] | None) -> int:
     if mission_warning:
         print(f"[bb2-launch] warning: {mission_warning}", file=sys.stderr, flush=True)
     if without:
+        from bb2_msgs_py.contract import node_interface
+
         print(f"[bb2-launch] without: {', '.join(without)} (not started: your nodes answer in their place on "
               f"ROS_DOMAIN_ID={monitor.domain_id}" + (f", in /{namespace}" if namespace else "")
               + "; until they do, the status line says FAILSAFE)", file=sys.stderr, flush=True)
+        for name in without:
+            pubs, subs = node_interface(name)
+            print(f"[bb2-launch]   in place of the {name}: publish "
+                  + ", ".join(f"{t.name} ({t.type})" for t in pubs) + "; it reads "
+                  + ", ".join(t.name for t in subs), file=sys.stderr, flush=True)
     for g in groups:
         print(f"[bb2-launch] composed: process '{process_name(g)}' runs {', '.join(g)}", file=sys.stderr, flush=True)
     if args.foxglove is not None:

@@ -750,6 +750,9 @@ def test_bb2_launch_without_the_mixer_flies_with_a_users_own_in_its_place(tmp_pa
     assert p.returncode == 0, p.stderr[-3000:]
     assert f"without: mixer (not started: your nodes answer in their place on ROS_DOMAIN_ID={domain}" in p.stderr
     assert "| FAILSAFE:" not in p.stderr  # the user's mixer answered from the first step
+    # what the user's node must publish and may read, from the contract (checked against the graph above)
+    assert ("in place of the mixer: publish /bb2/planes/cmd (sensor_msgs/msg/JointState); it reads /clock, "
+            "/bb2/autopilot/vh_cmd") in p.stderr, p.stderr[-3000:]
     assert not (tmp_path / "run" / "logs" / "mixer.log").exists()  # ours was never started
     log = (tmp_path / "run" / "logs" / "simulator.log").read_text()
     assert "no answer to step" not in log, log[-2000:]  # the user's mixer answered every step
@@ -773,6 +776,64 @@ def test_the_status_line_says_when_the_simulator_steps_on_its_failsafe(tmp_path,
     lines = [ln for ln in p.stderr.splitlines() if ln.startswith("[bb2-launch] sim ")]
     # (its planes neutral: none ever came; its propeller this step's, or held when the autopilot was late too)
     assert any("| FAILSAFE: lockstep timeout: neutral planes, " in ln for ln in lines), p.stderr[-3000:]
+
+
+ROS_OWN_TOPICS = {"/rosout", "/parameter_events"}
+
+
+@pytest.mark.ros
+def test_every_node_publishes_and_reads_what_the_contract_says(tmp_path, bb2_graph_available):
+    """The contract's publisher and subscribers of every topic (what ``--without`` tells a user their node must
+    publish and read) against the running graph's own endpoints, found by ROS graph introspection: each topic a node
+    publishes has that node as the contract's publisher, each topic it reads lists it among the subscribers, and no
+    node has a topic the contract lacks."""
+    import rclpy
+
+    from bb2_msgs_py.contract import EVERY_NODE, select_topics
+    from rosenv import wait_for_clock
+
+    domain = claimed_domain()
+    mission = _short_mission(tmp_path, 60.0)
+    params = tmp_path / "end_at_progress.yaml"   # as the launch files run it: the simulator reads the progress
+    params.write_text("simulator:\n  ros__parameters:\n    end_at_progress: true\n")
+    p = subprocess.Popen([sys.executable, "-m", "bb2_tools.launcher", str(mission), "--mode", "realtime",
+                          "--params", str(params), "--domain-id", str(domain), "--out", str(tmp_path / "run"),
+                          "--timeout", "150"],
+                         cwd=tmp_path, env=ros_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    nodes = [n.name for n in L.GRAPH_NODES]
+    found: dict[str, tuple[set[str], set[str]]] = {}
+    ctx = rclpy.Context()
+    try:
+        wait_for_clock(domain, 1.0)
+        rclpy.init(context=ctx, domain_id=domain)
+        probe = rclpy.create_node("contract_probe", context=ctx)
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 60:
+            names = {n for n, _ns in probe.get_node_names_and_namespaces()}
+            if set(nodes) <= names:
+                found = {n: ({t for t, _ in probe.get_publisher_names_and_types_by_node(n, "/")},
+                             {t for t, _ in probe.get_subscriber_names_and_types_by_node(n, "/")}) for n in nodes}
+                if all(pubs for pubs, _subs in found.values()):
+                    break
+            time.sleep(0.5)
+        probe.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+        p.send_signal(signal.SIGINT)
+        _out, err = p.communicate(timeout=120)
+    assert set(found) == set(nodes), (sorted(found), err[-2000:])
+    contract = {t.name: t for t in select_topics(include_bag_only=True)}
+    wrong = []
+    for node, (pubs, subs) in found.items():
+        for t in sorted(pubs - ROS_OWN_TOPICS):
+            if t not in contract or contract[t].publisher not in (node, EVERY_NODE):
+                wrong.append(f"{node} publishes {t} (contract: {contract[t].publisher if t in contract else 'none'})")
+        for t in sorted(subs - ROS_OWN_TOPICS):
+            if t not in contract or node not in contract[t].subscribers:
+                wrong.append(f"{node} reads {t} (contract: {contract[t].subscribers if t in contract else 'none'})")
+    assert not wrong, "\n".join(wrong)
+    assert "/bb2/planes/cmd" in found["mixer"][0] and "/bb2/autopilot/vh_cmd" in found["mixer"][1]
+    assert "/bb2/mission/progress" in found["simulator"][1]
 
 
 @pytest.mark.ros
