@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
+DRAIN_S = 2.0  # wall s to wait, after the simulator's final status, for the odometry up to its sim time
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
@@ -113,6 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     odom: list[tuple[float, np.ndarray]] = []
     statuses: list[dict[str, str]] = []
     stop = threading.Event()
+    end_sim_s: list[float] = []   # the sim time of the simulator's final status (finished / diverged)
 
     def on_odom(msg) -> None:
         s = cv.odometry_to_state(msg)
@@ -124,6 +126,10 @@ def main(argv: list[str] | None = None) -> int:
                 vals = {kv.key: kv.value for kv in st.values}
                 statuses.append(vals)
                 if vals.get("state") in ("finished", "diverged"):
+                    try:
+                        end_sim_s.append(float(vals.get("sim_time_s", "nan")))
+                    except ValueError:
+                        pass
                     stop.set()
 
     from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -138,6 +144,12 @@ def main(argv: list[str] | None = None) -> int:
     deadline = time.monotonic() + args.timeout
     while not stop.is_set() and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
+    # the final status and the last odometry come on two topics: on a loaded machine the status was taken first and
+    # the summary ended one step short (11.95 s of 12); take the odometry up to the status's sim time, at most DRAIN_S
+    drain_until = time.monotonic() + DRAIN_S
+    while (end_sim_s and math.isfinite(end_sim_s[-1]) and (not odom or odom[-1][0] < end_sim_s[-1] - 1e-9)
+           and time.monotonic() < drain_until):
+        rclpy.spin_once(node, timeout_sec=0.05)
     summary = summarize(args.mission, odom, statuses, path=path)
     summary["timed_out"] = not stop.is_set()
     if args.summary:  # written before the middleware's teardown (which a loaded machine has seen stuck)
