@@ -53,8 +53,7 @@ from launch_ros.substitutions import ExecutableInPackage
 
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
-from bb2_tools.launcher import (LaunchError, check_foxglove_port, check_mission, check_params_file,
-                                check_without)
+from bb2_tools.launcher import check_foxglove_port, check_mission, check_params_file, check_without
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
@@ -94,26 +93,15 @@ def mission_file(value: str) -> Path:
     return installed_or_file(value, SHARE / "missions", "mission")
 
 
-def checked_mission(path: Path) -> str:
-    """The mission at ``path`` checked before any node starts, as bb2-launch checks it (``check_mission``: it loads,
-    its boat starts in the water), else every node refused it with the same message; returns '' or its warning."""
-    try:
-        return check_mission(path)
-    except LaunchError as exc:
-        raise RuntimeError(str(exc)) from None
-
-
 def checked_params_file(value: str) -> str:
     """'' (no params file) or the params file ``value``, checked as ``bb2-launch --params`` checks it: it exists,
     it is ROS 2's layout, and its node names and parameters are the graph's (launch_ros only warns of a missing
-    file and starts the nodes without it; ROS ignores a parameter no node declares)."""
+    file and starts the nodes without it; ROS ignores a parameter no node declares).  Like every check here it
+    raises bb2-launch's own error: any exception is what makes ``ros2 launch`` say it and exit 1."""
     if not value.strip():
         return ""
     path = Path(value).expanduser().resolve()
-    try:
-        check_params_file(path, SHARE / "config" / "bb2_graph.yaml")
-    except LaunchError as exc:
-        raise RuntimeError(str(exc)) from None
+    check_params_file(path, SHARE / "config" / "bb2_graph.yaml")
     return str(path)
 
 
@@ -269,7 +257,7 @@ def default_bag(bag_dir: str, mission: Path, namespace: str) -> Path:
 def _graph(context):
     a = {k: LaunchConfiguration(k).perform(context) for k in ARGUMENTS}
     mission = mission_file(a["mission"])
-    warning = checked_mission(mission)
+    warning = check_mission(mission)   # as bb2-launch checks it: else every node refused it, one by one
     params_file = checked_params_file(a["params_file"])
     record = flag(a["record"], "record")
     bag = (Path(a["bag"]).expanduser().resolve() if a["bag"] else default_bag(a["bag_dir"], mission, a["namespace"])) \
@@ -279,20 +267,14 @@ def _graph(context):
         raise RuntimeError(f"bag directory {bag} " + ("exists and is not empty (another run has it)" if bag.is_dir()
                                                       else "is a file") + ": choose another bag:=, or leave bag:='' "
                            "for a new one under bag_dir")
-    try:
-        without = check_without(a["without"], "launch argument without")
-    except LaunchError as exc:
-        raise RuntimeError(str(exc)) from None
+    without = check_without(a["without"], "launch argument without")
     fox = flag(a["foxglove"], "foxglove")
     try:
         fox_port = int(a["foxglove_port"]) if fox else None
     except ValueError:
         raise RuntimeError(f"launch argument foxglove_port must be a port number, got {a['foxglove_port']!r}") from None
     if fox_port is not None:  # out of range or taken: said now, as bb2-launch --foxglove says it
-        try:
-            check_foxglove_port(fox_port, "launch argument foxglove_port")
-        except LaunchError as exc:
-            raise RuntimeError(str(exc)) from None
+        check_foxglove_port(fox_port, "launch argument foxglove_port")
     acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
                 params_file=params_file, compose=flag(a["compose"], "compose"), foxglove_port=fox_port,
                 without=without)

@@ -72,12 +72,9 @@ def _fleet(context):
         if len(missions) != len(boats):
             raise RuntimeError(f"{len(missions)} missions for {len(boats)} boats")
     params_file = graph.checked_params_file(a["params_file"])
-    try:
-        without = graph.check_without(a["without"], "launch argument without")
-    except graph.LaunchError as exc:
-        raise RuntimeError(str(exc)) from None
+    without = graph.check_without(a["without"], "launch argument without")
     checked = [(ns, graph.mission_file(m)) for ns, m in zip(boats, missions)]
-    warnings = [(ns, graph.checked_mission(mission)) for ns, mission in checked]  # every boat's, before any starts
+    warnings = [(ns, graph.check_mission(mission)) for ns, mission in checked]  # every boat's, before any starts
     actions, sims = [], []
     ended: set[int] = set()
     if record:
