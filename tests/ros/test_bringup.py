@@ -285,7 +285,15 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("fleet.launch.py", [f"missions:={tmp / 'short.yaml'},{tmp / 'bad_mission.yaml'}"],
              "duration_s must be > 0 s, got -5.0"),
             ("bb2_graph.launch.py", ["record:=true", f"bag:={tmp}"],  # the recorder refused it once nodes were up
-             f"bag directory {tmp} exists and is not empty (another run has it)"),
+             f"launch argument bag: bag directory {tmp} exists and is not empty (another run has it): choose another "
+             "bag:=, or leave bag:='' for a new one under bag_dir"),
+            ("bb2_graph.launch.py", ["record:=true", f"bag_dir:={tmp / 'short.yaml'}"],
+             f"launch argument bag_dir: {tmp / 'short.yaml'} exists and is not a directory"),
+            # refused after the fleet's bag directory was claimed (a mission is checked once written there): the
+            # directory goes again
+            ("fleet.launch.py", ["record:=true", f"bag_dir:={tmp / 'refused'}",
+                                 f"missions:={tmp / 'short.yaml'},{tmp / 'bad_mission.yaml'}"],
+             "duration_s must be > 0 s, got -5.0"),
             ("bb2_graph.launch.py", ["without:=mixr"], "launch argument without: unknown node 'mixr' (did you mean "
              "'mixer'?); nodes that may be left out: planner, path_following, l1_autopilot, mixer"),
             ("bb2_graph.launch.py", ["without:=simulator"], "the simulator is the boat itself"),
@@ -295,6 +303,7 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
         assert p.returncode == 1, (args, out[-3000:])
         assert "Caught exception in launch (see debug for traceback): " in out and said in out, (args, out[-3000:])
         assert "process started" not in out, (args, out[-3000:])  # refused before any node
+    assert (tmp / "refused").is_dir() and not any((tmp / "refused").iterdir())  # no bag directory left behind
     taken.close()
 
 
@@ -317,6 +326,12 @@ def test_a_failed_run_makes_ros2_launch_exit_1(ws):
     out = finish(p, 180)
     assert p.returncode == 1, out[-3000:]
     assert "/boat2/simulator exited (code 0); 2 of 2 boats done" in out, out[-3000:]  # boat2 flew to its end
+    # boat1's nodes went with its simulator (they ran on, idle, until the last boat ended): before boat2 ended,
+    # its planner (started under nice), path follower, autopilot and mixer had stopped (still starting, some
+    # died of the SIGINT)
+    before = out[:out.index("/boat2/simulator exited")]
+    gone = set(re.findall(r"\] \[([a-z_0-9]+)-\d+\]: process has (?:finished cleanly|died)", before))
+    assert {"nice", "path_following", "l1_autopilot", "mixer"} <= gone, (gone, out[-3000:])
     assert "1 of 2 boats' runs failed: the simulator of /boat1 (code 2) exited with an error" in out, out[-3000:]
 
 
@@ -361,13 +376,22 @@ def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):
     # a fleet file: boat1 the solo mission as it is, boat2 another mission with its own start (bb2_mission.fleet)
     (tmp / "pair.yaml").write_text("name: pair\nboats:\n  boat1: short.yaml\n  boat2:\n    mission: short_straight.yaml\n"
                                    "    initial: {offset_m: [0.0, 20.0, 0.0]}\n")
+    # the bag's default name is taken for every second of the next five minutes (another launch's, of the same
+    # fleet): the launch claims the first free one, <name>_2, as bb2-launch does (it refused the taken one)
+    now = time.time()
+    taken = {(tmp / "fleet" / f"pair_{time.strftime('%Y%m%d_%H%M%S', time.localtime(now + k))}") for k in range(300)}
+    for d in taken:
+        d.mkdir(parents=True)
+        (d / "metadata.yaml").write_text("another run's\n")
     p = launch(ws, domain, "fleet.launch.py", f"fleet:={tmp / 'pair.yaml'}", f"bag_dir:={tmp / 'fleet'}")
     out = finish(p, 240)
     assert p.returncode == 0 and "2 of 2 boats done" in out, out[-3000:]
     assert "matches no topic" not in out, out[-3000:]  # every remap names a topic of its node
     # one recorder, one bag: every boat's topics under its namespace, one /tf; beside it the boats' missions
-    (fleet,) = (tmp / "fleet").iterdir()
-    assert fleet.name.startswith("pair_") and (fleet / "missions" / "boat2.yaml").is_file(), sorted(fleet.rglob("*"))
+    (fleet,) = set((tmp / "fleet").iterdir()) - taken
+    assert all((d / "metadata.yaml").read_text() == "another run's\n" for d in taken)  # theirs untouched
+    assert fleet.name.startswith("pair_") and fleet.name.endswith("_2") and fleet.with_name(fleet.name[:-2]) in taken
+    assert (fleet / "missions" / "boat2.yaml").is_file() and (fleet / ".bb2_run").is_file(), sorted(fleet.rglob("*"))
     assert not (fleet / "missions" / "boat1.yaml").exists()  # boat1 flies short.yaml itself
     from bb2_tools.bagfile import BagReader
 

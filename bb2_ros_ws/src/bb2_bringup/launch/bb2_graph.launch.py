@@ -5,7 +5,8 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
   mission      canyon (a mission installed in share/bb2_bringup/missions, without .yaml) or a mission FILE
   time_mode    lockstep | realtime
   record       true | false: the recorder writes every topic to a rosbag2 MCAP bag
-  bag          the bag directory ('' = <bag_dir>/<mission>_<YYYYmmdd_HHMMSS>[_<namespace>])
+  bag          the bag directory ('' = <bag_dir>/<mission>_<YYYYmmdd_HHMMSS>[_<namespace>][_2, _3 ...: the first
+               free one]): a new or empty directory, claimed for this run as bb2-launch claims its run directory
   bag_dir      where bags go when bag is '' (default bags, relative to the working directory)
   namespace    '' or NAME: the boat's nodes run in /NAME and its topics are /NAME/bb2/... and /NAME/clock
                (several boats side by side without crosstalk; fleet.launch.py starts several)
@@ -46,12 +47,14 @@ from launch import LaunchDescription
 from launch.actions import (DeclareLaunchArgument, EmitEvent, ExecuteProcess, LogInfo, OpaqueFunction,
                             RegisterEventHandler)
 from launch.event_handlers import OnProcessExit
-from launch.events import Shutdown
+from launch.events import Shutdown, matches_action
+from launch.events.process import ShutdownProcess
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.substitutions import ExecutableInPackage
 
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
+from bb2_sim.outputs import OutputError, claim_run_dir
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
 from bb2_tools.launcher import check_foxglove_port, check_mission, check_params_file, check_without
 
@@ -154,13 +157,13 @@ def container_arguments(nodes: list[tuple[str, dict]], params: list[str], ns: st
 def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, namespace: str, params_file: str,
          stop_launch: bool = True, compose: bool = False, foxglove_port: int | None = None,
          own_recorder: bool = True, without: tuple[str, ...] = ()) -> list:
-    """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch;
+    """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch,
+    without it the simulator's exit stops this boat's other nodes;
     ``compose``: every node but the recorder in one container process; ``foxglove_port``: the live Foxglove
     server on that port; ``record`` without ``own_recorder``: recorded by a recorder of the caller's, a fleet's
     (:func:`fleet_recorder`), which the simulator waits for as for its own; ``without``: nodes not started, a
     user's own in their place, :func:`bb2_tools.launcher.check_without`)."""
-    if time_mode not in ("lockstep", "realtime"):
-        raise RuntimeError(f"launch argument time_mode must be lockstep or realtime, got {time_mode!r}")
+    check_time_mode(time_mode)
     ns = namespace.strip("/")
     common = {"mission_file": str(mission)}
     params = [params_file] if params_file else []
@@ -176,8 +179,9 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     who = (lambda exe: f"/{ns}/{exe}") if ns else (lambda exe: f"the {exe}")
     if record and own_recorder:
         assert bag is not None
-        actions.append(node("bb2_tools", "recorder", {"bag_directory": str(bag), "use_sim_time": True},
-                            background=True))
+        # (overwrite: the directory holds the claim file of claim_bag, as bb2-launch's run directory does)
+        actions.append(node("bb2_tools", "recorder", {"bag_directory": str(bag), "use_sim_time": True,
+                                                      "overwrite": True}, background=True))
         actions.append(watch(actions[-1], who("recorder"), lambda: bool(run_over)))
     if foxglove_port is not None:
         actions.append(node("bb2_tools", "foxglove_bridge", {"port": int(foxglove_port), "use_sim_time": True},
@@ -206,8 +210,17 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
             actions.append(watch(actions[-1], who(exe), lambda: bool(run_over)))
         sim = node("bb2_ros", "simulator", sim_values)
     what = "container" if compose else "simulator"
-    actions.append(RegisterEventHandler(OnProcessExit(target_action=sim,
-                                                      on_exit=lambda _event, _ctx: run_over.append(True))))
+    # the boat's other nodes (not a fleet's recorder) go with its run: in a fleet the other boats may fly on (as
+    # each boat's bb2-launch stops its own graph); alone the whole launch stops anyway
+    own = [act for act in actions if isinstance(act, (Node, ExecuteProcess))]
+
+    def over(_event, context):
+        run_over.append(True)
+        if stop_launch or context.is_shutdown:
+            return None
+        return [EmitEvent(event=ShutdownProcess(process_matcher=matches_action(act))) for act in own]
+
+    actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=over)))
     if stop_launch:
         def on_exit(event, context):
             said = LogInfo(msg=f"[bb2_bringup] {what}{' of ' + ns if ns else ''} exited (code {event.returncode}): "
@@ -220,6 +233,12 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
         actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=on_exit)))
     actions.append(sim)   # last: the caller's (a fleet's) handle on this boat's simulator
     return actions
+
+
+def check_time_mode(time_mode: str) -> str:
+    if time_mode not in ("lockstep", "realtime"):
+        raise RuntimeError(f"launch argument time_mode must be lockstep or realtime, got {time_mode!r}")
+    return time_mode
 
 
 def watch(action, who: str, run_over, *, essential: bool = True) -> RegisterEventHandler:
@@ -243,15 +262,27 @@ def fleet_recorder(bag: Path, boats: list[str]) -> Node:
     """The one recorder of a fleet: every boat's topics under its namespace in one bag (``/boat1/bb2/odom``,
     ``/boat1/clock``, one ``/tf``), each boat logged on its own clock and acknowledged on its
     ``/boat1/bb2/recorder/ack``."""
-    # (overwrite: the bag directory may already hold the boats' mission files, missions/, as a run directory does)
+    # (overwrite: the bag directory holds its claim file and the boats' mission files, missions/, as a run directory
+    # does)
     return Node(package="bb2_tools", executable="recorder", name="recorder", output="screen", prefix=BACKGROUND,
                 parameters=[{"bag_directory": str(bag), "use_sim_time": True, "boats": list(boats),
                              "overwrite": True}])
 
 
-def default_bag(bag_dir: str, mission: Path, namespace: str) -> Path:
-    name = f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}" + (f"_{namespace.strip('/')}" if namespace else "")
-    return Path(bag_dir).expanduser().resolve() / name
+def claim_bag(bag: str, bag_dir: str, stem: str) -> Path:
+    """The run's bag directory, claimed for it as ``bb2-launch`` claims its run directory
+    (:func:`bb2_sim.outputs.claim_run_dir`: ``os.mkdir`` is atomic, the directory holds a claim file naming the
+    run): ``bag`` (a new or empty directory; its parent writable), else ``<bag_dir>/<stem>`` or, taken (two
+    launches in the same second), ``<stem>_2``, ``_3`` ... The recorder then writes into it (``overwrite``)."""
+    try:
+        if bag:
+            return claim_run_dir(path=Path(bag).expanduser().resolve())
+        return claim_run_dir(Path(bag_dir).expanduser().resolve(), stem)
+    except OutputError as exc:  # said before any node starts (the recorder refused it once the nodes were up)
+        what = "launch argument bag" if bag else "launch argument bag_dir"
+        raise OutputError(f"{what}: {str(exc).replace('run directory', 'bag directory')}"
+                          + (": choose another bag:=, or leave bag:='' for a new one under bag_dir" if bag else "")
+                          ) from None
 
 
 def _graph(context):
@@ -260,13 +291,6 @@ def _graph(context):
     warning = check_mission(mission)   # as bb2-launch checks it: else every node refused it, one by one
     params_file = checked_params_file(a["params_file"])
     record = flag(a["record"], "record")
-    bag = (Path(a["bag"]).expanduser().resolve() if a["bag"] else default_bag(a["bag_dir"], mission, a["namespace"])) \
-        if record else None
-    if bag is not None and bag.exists() and (not bag.is_dir() or any(bag.iterdir())):
-        # the recorder would refuse it once the nodes are up (as bb2-launch refuses an --out another run has)
-        raise RuntimeError(f"bag directory {bag} " + ("exists and is not empty (another run has it)" if bag.is_dir()
-                                                      else "is a file") + ": choose another bag:=, or leave bag:='' "
-                           "for a new one under bag_dir")
     without = check_without(a["without"], "launch argument without")
     fox = flag(a["foxglove"], "foxglove")
     try:
@@ -275,11 +299,17 @@ def _graph(context):
         raise RuntimeError(f"launch argument foxglove_port must be a port number, got {a['foxglove_port']!r}") from None
     if fox_port is not None:  # out of range or taken: said now, as bb2-launch --foxglove says it
         check_foxglove_port(fox_port, "launch argument foxglove_port")
+    check_time_mode(a["time_mode"])
+    compose = flag(a["compose"], "compose")
+    # claimed last, every other check passed: a refused launch leaves no directory behind
+    stem = f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}" + (f"_{a['namespace'].strip('/')}" if a["namespace"]
+                                                                else "")
+    bag = claim_bag(a["bag"], a["bag_dir"], stem) if record else None
     acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
-                params_file=params_file, compose=flag(a["compose"], "compose"), foxglove_port=fox_port,
+                params_file=params_file, compose=compose, foxglove_port=fox_port,
                 without=without)
     said = LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
-                       + (" | composed" if flag(a["compose"], "compose") else "")
+                       + (" | composed" if compose else "")
                        + (f" | namespace /{a['namespace'].strip('/')}" if a["namespace"] else "")
                        + (f" | without {', '.join(without)} (your nodes in their place)" if without else "")
                        + (f" | bag {bag}" if bag else " | not recorded")

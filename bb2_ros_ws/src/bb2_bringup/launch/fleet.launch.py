@@ -10,21 +10,22 @@ with its own controllers (deterministic: a boat's run equals the same mission fl
   boats        comma-separated namespaces (default boat1,boat2)
   missions     one mission (name or file) for every boat, or one per boat, comma-separated (default canyon)
   time_mode    lockstep | realtime
-  record       true | false: one bag of every boat, <bag_dir>/fleet_<date> (its topics /boat1/bb2/odom ...;
-               ``bb2-analyze`` of it reports every boat)
+  record       true | false: one bag of every boat, <bag_dir>/<fleet>_<date>[_2 ...: the first free one] (its
+               topics /boat1/bb2/odom ...; ``bb2-analyze`` of it reports every boat)
   bag_dir      default bags
   params_file  the graph's params file
   without      '' or NODE[,NODE...]: those nodes of every boat are not started, yours answer in their place in
                each boat's namespace (as in bb2_graph.launch.py)
 
 The launch ends when every boat's simulator has ended its run, with exit code 1 when any boat's simulator exited
-with an error (the other boats fly on to their end); any other node of a boat, or the fleet's recorder, that dies
+with an error (the other boats fly on to their end); a boat's other nodes stop when its simulator ends; any other node of a boat, or the fleet's recorder, that dies
 before its run's end stops every boat and fails the launch (as in bb2_graph.launch.py).  Every boat's mission and
 the params file are checked before any node starts.  Ctrl-C stops every node cleanly.
 """
 from __future__ import annotations
 
 import importlib.util
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -58,11 +59,7 @@ def _fleet(context):
     record = graph.flag(a["record"], "record")
     fleet = load_fleet(fleet_file(a["fleet"])) if a["fleet"].strip() else None
     name = fleet.name if fleet is not None else "fleet"
-    root = Path(a["bag_dir"]).expanduser().resolve() / f"{name}_{time.strftime('%Y%m%d_%H%M%S')}"
-    if fleet is not None:  # every boat's mission as a file of its own, kept with the bag (the nodes read it)
-        files = fleet.write_missions(root / "missions" if record else tempfile.mkdtemp(prefix=f"{name}_"))
-        boats, missions = list(files), [str(f) for f in files.values()]
-    else:
+    if fleet is None:
         boats = [b.strip().strip("/") for b in a["boats"].split(",") if b.strip()]
         if not boats or len(set(boats)) != len(boats):
             raise RuntimeError(f"launch argument boats must name distinct namespaces, got {a['boats']!r}")
@@ -71,10 +68,21 @@ def _fleet(context):
             missions *= len(boats)
         if len(missions) != len(boats):
             raise RuntimeError(f"{len(missions)} missions for {len(boats)} boats")
+    graph.check_time_mode(a["time_mode"])
     params_file = graph.checked_params_file(a["params_file"])
     without = graph.check_without(a["without"], "launch argument without")
-    checked = [(ns, graph.mission_file(m)) for ns, m in zip(boats, missions)]
-    warnings = [(ns, graph.check_mission(mission)) for ns, mission in checked]  # every boat's, before any starts
+    # the bag directory, claimed as bb2-launch claims its run directory (fleet_<date>, _2 ... when taken)
+    root = graph.claim_bag("", a["bag_dir"], f"{name}_{time.strftime('%Y%m%d_%H%M%S')}") if record else None
+    try:
+        if fleet is not None:  # every boat's mission as a file of its own, kept with the bag (the nodes read it)
+            files = fleet.write_missions(root / "missions" if root is not None else tempfile.mkdtemp(prefix=f"{name}_"))
+            boats, missions = list(files), [str(f) for f in files.values()]
+        checked = [(ns, graph.mission_file(m)) for ns, m in zip(boats, missions)]
+        warnings = [(ns, graph.check_mission(mission)) for ns, mission in checked]  # every boat's, before any starts
+    except BaseException:
+        if root is not None:  # refused: the directory claimed above holds only what this launch wrote
+            shutil.rmtree(root, ignore_errors=True)
+        raise
     actions, sims = [], []
     ended: set[int] = set()
     if record:
