@@ -27,7 +27,7 @@ from bb2_sim.outputs import OutputError, claim_run_dir
 
 from bb2_tools.graph_monitor import domain_monitor
 from bb2_tools.launcher import (GRAPH_NODES, RECORDER_NODE_NAME, check_params_file, check_run_options, check_without,
-                                gap_lines, node_command, recorded_topics)
+                                clean_after_killed, gap_lines, node_command, recorded_topics)
 from bb2_tools.supervisor import LaunchError, ProcessSpec, RestartPolicy, Supervisor, exit_cause
 
 BOAT_STOP_GRACE_S = 60.0  # a boat's launcher stops its graph on SIGINT (its recorder-less end: seconds)
@@ -163,6 +163,7 @@ def run_fleet(args: argparse.Namespace) -> int:
         monitor.close()
         for s, h in previous.items():
             signal.signal(s, h)
+    clean_after_killed(sup.exits, say)  # (each boat's launcher cleans after its own nodes)
     failed = [b for b in boats if ended.get(b) != 0]
     if stop["signal"]:
         code = 130

@@ -70,7 +70,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
 
@@ -78,6 +78,7 @@ from bb2_ros.container import NODE_CLASSES
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, PUBLISHED_DIR_ENV, REALTIME_CONTROLLERS
 from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE, RECORDER_STATUS_NAME, status_source
+from bb2_tools.dds_shm import clean_stale_files
 from bb2_tools.graph_monitor import END_AT, GraphMonitor, domain_monitor, format_status
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
                                   Supervisor, parse_restart_policies, uses_default_max)
@@ -519,6 +520,18 @@ def process_names(groups: Sequence[Sequence[str]]) -> list[str]:
     grouped = {n for g in groups for n in g}
     names = [process_name(g) for g in groups]
     return [n.name for n in GRAPH_NODES if n.name not in grouped] + names
+
+
+def clean_after_killed(exits: list[NodeExit], say: Callable[[str], None]) -> None:
+    """A node process that ended by a signal (killed: by hand, a crash, the stop's SIGKILL) left its Fast DDS
+    shared-memory files in /dev/shm (memory); Fast DDS's own tool removes those whose owner is gone
+    (:mod:`bb2_tools.dds_shm`), said when it removed any."""
+    killed = sorted({ev.name for ev in exits if ev.returncode < 0})
+    if not killed:
+        return
+    cleaned = clean_stale_files()
+    if cleaned is not None and (cleaned.segments or cleaned.ports):
+        say(f"{', '.join(killed)} ended by a signal: {cleaned.line()}")
 
 
 def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params: Path | None = None,
@@ -1000,6 +1013,7 @@ def _main(argv: Sequence[str] | None) -> int:
     bags = recorder_bags(run_dir, result.exits) if not (args.no_record or args.external_recorder) else []
     for note in repair_bags(bags):
         print(f"[bb2-launch] {note}", file=sys.stderr)
+    clean_after_killed(sup.exits, lambda line: print(f"[bb2-launch] {line}", file=sys.stderr))
     counts_note = ""
     if len(bags) == 1 and bags[0].is_dir():  # a restarted recorder splits the run: its bags are not compared
         try:

@@ -45,9 +45,20 @@ def pytest_collection_modifyitems(config, items):
 
 
 def pytest_sessionfinish(session, exitstatus):
-    """The ros2 CLI daemons of the domains this process claimed (tests/rosenv.py) end with it."""
+    """The ros2 CLI daemons of the domains this process claimed (tests/rosenv.py) end with it.  Once the whole
+    session is over (not in an xdist worker: the others' nodes may still run), the Fast DDS shared-memory files of
+    the nodes the tests killed on purpose are removed (``fastdds shm clean``: only those whose owner is gone)."""
     import sys
 
     rosenv = sys.modules.get("rosenv")
     if rosenv is not None and rosenv.claimed_ids:
         rosenv.stop_ros2_daemons(rosenv.claimed_ids)
+    if not hasattr(session.config, "workerinput"):
+        from bb2_tools.dds_shm import clean_stale_files
+
+        cleaned = clean_stale_files()
+        if cleaned is not None and (cleaned.segments or cleaned.ports):
+            tr = session.config.pluginmanager.get_plugin("terminalreporter")
+            if tr is not None:
+                tr.ensure_newline()
+                tr.write_line(f"tests: {cleaned.line()}")

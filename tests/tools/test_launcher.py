@@ -945,6 +945,10 @@ def test_bb2_launch_reports_a_killed_simulator_and_exits_nonzero(tmp_path, bb2_g
         seen = _wait_for_line(p, lambda line: re.search(r"sim +[1-9][0-9.]* s", line) is not None, timeout=90)
         sims = [pid for pid, cmd in _children(p.pid).items() if "simulator" in cmd]
         assert len(sims) == 1, _children(p.pid)
+        # its Fast DDS shared-memory segment (not a port: those may be shared): a killed process leaves it
+        with open(f"/proc/{sims[0]}/maps") as f:
+            segments = {Path(m) for m in re.findall(r"(/dev/shm/fastrtps_[0-9a-f]{16})$", f.read(), re.M)}
+        assert segments and all(s.exists() for s in segments), segments
         os.kill(sims[0], signal.SIGKILL)
         t_kill = time.monotonic()
         _, err = p.communicate(timeout=60)
@@ -959,6 +963,10 @@ def test_bb2_launch_reports_a_killed_simulator_and_exits_nonzero(tmp_path, bb2_g
     assert "simulator up" in err.split("node 'simulator' ended")[1]  # its last log lines
     assert not _children(p.pid)
     assert (out / "metadata.yaml").is_file()  # the recorder, stopped last, finished the bag
+    # bb2-launch removed what the killed simulator left in /dev/shm (fastdds shm clean), and said so
+    assert not [s for s in segments if s.exists() or Path(f"{s}_el").exists()], segments
+    assert re.search(r"simulator ended by a signal: \d+ stale Fast DDS shared-memory segments? and \d+ ports? "
+                     r"removed from /dev/shm \(fastdds shm clean\)", err), err[-3000:]
 
 
 @pytest.mark.ros
