@@ -215,7 +215,8 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
     supervise until the mission ends, a node fails, a signal arrives, ``timeout_s`` passes or (with
     ``stall_timeout_s``) the sim time has not advanced for that many wall seconds since it last moved, or has
     not started ``ready_timeout_s + stall_timeout_s`` after every process was started (the time its nodes have
-    to come up, then the stall timeout: reported as stalled, exit 1); stop everything; return the result.
+    to come up, then the stall timeout), or the simulator has stepped on its failsafe for that many wall seconds
+    (every controller silent: reported as stalled, exit 1); stop everything; return the result.
     ``recorder_outside``: the boat is recorded by a recorder of another process (a fleet's), whose
     acknowledgement the end waits for as for its own (:func:`caught_up`)."""
     flag = _StopFlag()
@@ -227,6 +228,7 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
     last_status = 0.0
     reason, code = "", 0
     last_sim: tuple[float | None, float] = (None, t0)  # (sim time, wall time it was first seen)
+    failsafe_since: float | None = None  # wall time the simulator's status first said FAILSAFE, this time
 
     def say(msg: str) -> None:
         print(("\r\033[K" if tty else "") + msg, file=out, flush=True)
@@ -291,6 +293,13 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                 elif now - last_sim[1] > stall_timeout_s:
                     reason, code = (f"stalled: sim time stuck at {monitor.sim_time_s:.2f} s for "
                                     f"{now - last_sim[1]:.0f} s of wall time (--stall-timeout {stall_timeout_s:g})"), 1
+            if monitor is not None:
+                failsafe_since = None if monitor.failsafe is None else failsafe_since or now
+            if not reason and stall_timeout_s and failsafe_since is not None and now - failsafe_since > stall_timeout_s:
+                # the run goes on, but as no run: in lockstep one step a second (lockstep_timeout_s) on held or
+                # neutral planes, in real time the boat flying on its failsafe alone
+                reason, code = (f"{FAILSAFE_STALL} for {now - failsafe_since:.0f} s of wall time "
+                                f"({monitor.failsafe}; --stall-timeout {stall_timeout_s:g})"), 1
             if monitor is not None and (reason or tty or now - last_status >= status_period_s):
                 # a status line every status_period_s, and always one when the run ends (a graph that flew within
                 # its start-up, before the first period, still shows where it stopped and how many nodes ran)
@@ -791,9 +800,11 @@ FROZEN_CHECK_S = 0.5
 """How often (wall s) run_graph looks for stopped node processes (:meth:`Supervisor.stopped`)."""
 
 DEFAULT_STALL_TIMEOUT_S = 60.0
+FAILSAFE_STALL = "stalled: the simulator has stepped on its failsafe"
 """Wall seconds without the sim time advancing after which ``bb2-launch`` stops the graph as stalled (the
 simulator's own lockstep timeout steps on held commands after 0.5 s by default, so a graph that lives never
-stands still this long)."""
+stands still this long), or stepping on the simulator's failsafe (its status says FAILSAFE: no controller answers;
+in lockstep one step a second)."""
 
 REJOINING = {"path_following": "rejoin_run"}
 """Nodes with state along the run, and the parameter that makes a restarted one rejoin the run where it stands (the
@@ -853,7 +864,8 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     p.add_argument("--timeout", type=float, default=None, help="wall-clock limit in seconds (exit 1)")
     p.add_argument("--stall-timeout", type=float, default=DEFAULT_STALL_TIMEOUT_S, metavar="S",
                    help="stop the graph as stalled (exit 1) when the sim time has not advanced for S wall "
-                        "seconds, or has not started S seconds after --ready-timeout (the nodes' start-up) "
+                        "seconds, or has not started S seconds after --ready-timeout (the nodes' start-up), or "
+                        "the simulator has stepped on its failsafe (no controller answering) for S wall seconds "
                         f"(default {DEFAULT_STALL_TIMEOUT_S:g}; 0 = never)")
     p.add_argument("--status-period", type=float, default=5.0, metavar="S",
                    help="print the graph's status line (sim time, real-time factor, nodes) every S wall seconds "
@@ -1021,6 +1033,10 @@ def _main(argv: Sequence[str] | None) -> int:
                                                    recorded_topics(namespace), namespace)
         except OSError as exc:
             counts_note = f"cannot write {bags[0] / PUBLICATION_COUNTS_FILE}: {exc}"
+    if without and result.reason.startswith(FAILSAFE_STALL):
+        print(f"[bb2-launch] nothing answered in place of the {', '.join(without)} (--without): start your nodes on "
+              f"ROS_DOMAIN_ID={monitor.domain_id}" + (f" in /{namespace}" if namespace else "") + " with the launch, "
+              "or give --stall-timeout 0 to fly on the failsafe", file=sys.stderr)
     rtf = f"{result.rtf_overall:.1f}x" if result.rtf_overall else "--"
     t = f"{result.sim_time_s:.2f} s" if result.sim_time_s is not None else "--"
     print(f"[bb2-launch] {result.reason}: sim time {t}, RTF {rtf}, wall {result.wall_s:.1f} s, "

@@ -776,6 +776,20 @@ def test_the_status_line_says_when_the_simulator_steps_on_its_failsafe(tmp_path,
     lines = [ln for ln in p.stderr.splitlines() if ln.startswith("[bb2-launch] sim ")]
     # (its planes neutral: none ever came; its propeller this step's, or held when the autopilot was late too)
     assert any("| FAILSAFE: lockstep timeout: neutral planes, " in ln for ln in lines), p.stderr[-3000:]
+    # on a mission of 400 s the crawl went on for hours (one step per lockstep_timeout_s): --stall-timeout ends it,
+    # with what to do
+    long = _short_mission(tmp_path, 400.0)
+    t0 = time.monotonic()
+    p = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(long), "--without", "mixer", "--params",
+                        str(params), "--stall-timeout", "3", "--no-record", "--timeout", "100", "--out",
+                        str(tmp_path / "crawl")], cwd=tmp_path, env=ros_env(), capture_output=True, text=True,
+                       timeout=150)
+    assert p.returncode == 1, p.stderr[-3000:]
+    said = re.search(r"stopping: stalled: the simulator has stepped on its failsafe for (\d+) s of wall time "
+                     r"\(lockstep timeout: neutral planes, [^;]*; --stall-timeout 3\)", p.stderr)
+    assert said and 3 <= int(said.group(1)) <= 10, p.stderr[-3000:]
+    assert "nothing answered in place of the mixer (--without): start your nodes on ROS_DOMAIN_ID=" in p.stderr
+    assert time.monotonic() - t0 < 90, p.stderr[-3000:]  # not the --timeout
 
 
 ROS_OWN_TOPICS = {"/rosout", "/parameter_events"}
