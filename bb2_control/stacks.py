@@ -34,6 +34,7 @@ from bb2_control.los import LineOfSightDepth, LOSGains
 from bb2_control.mixer import PlaneMixer
 from bb2_control.path_following import PathFollowing3D, PFGains, flow_to_body_rates, prepare_steps
 from bb2_sim import frames
+from bb2_sim.names import close_name
 from bb2_sim.state import VehicleState
 
 __all__ = [
@@ -379,8 +380,6 @@ def _unknown_override_keys(over: Mapping[str, Any], base: Mapping[str, Any], whe
     """Dotted keys of ``over`` (a stack file's or mapping's changes to a named stack, or ``overrides``) that the
     resolved ``base`` does not have: typos that would change nothing.  A section given by name (a string: a whole
     entry of its data file) replaces the section and is not looked into."""
-    import difflib
-
     out = []
     section = where.split(".", 1)[0]
     for k, v in over.items():
@@ -391,9 +390,8 @@ def _unknown_override_keys(over: Mapping[str, Any], base: Mapping[str, Any], whe
         if known is _MISSING:
             if k in _OPTIONAL_KEYS.get(section, ()) or (not where and k in _OPTIONAL_KEYS[""]):
                 continue
-            close = difflib.get_close_matches(str(k), [str(b) for b in base] if isinstance(base, Mapping) else [],
-                                              1, 0.6)
-            out.append(path + (f" (did you mean {(where + '.' if where else '') + close[0]}?)" if close else ""))
+            close = close_name(k, base if isinstance(base, Mapping) else ())
+            out.append(path + (f" (did you mean {(where + '.' if where else '') + close}?)" if close else ""))
         elif isinstance(v, Mapping) and isinstance(known, Mapping):
             out += _unknown_override_keys(v, known, path)
     return out

@@ -27,6 +27,7 @@ from typing import Any
 import yaml
 
 from bb2_mission.schema import MISSIONS_DIR, Mission, MissionError, load_mission
+from bb2_sim.names import unknown_keys_hint
 from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["FleetBoat", "Fleet", "load_fleet", "is_fleet_file"]
@@ -122,7 +123,8 @@ def load_fleet(file: str | Path) -> Fleet:
     doc = _read(f)
     unknown = set(doc) - _TOP_KEYS
     if unknown:
-        raise MissionError(f"{f}: unknown fleet key(s) {sorted(unknown)} (known: {sorted(_TOP_KEYS)})")
+        raise MissionError(f"{f}: unknown fleet key(s) {sorted(unknown)}{unknown_keys_hint(unknown, _TOP_KEYS)} "
+                           f"(known: {sorted(_TOP_KEYS)})")
     boats_doc = doc.get("boats")
     if not isinstance(boats_doc, dict) or not boats_doc:
         raise MissionError(f"{f}: 'boats' must map each boat's name to its mission, got {boats_doc!r}")

@@ -74,6 +74,7 @@ from bb2_planner.terrain import PathBelowTerrainError, Terrain, TerrainError, Te
 from bb2_sim.environment import Environment, current_from_mapping, sea_from_mapping
 from bb2_sim.sea import SeaInputError
 from bb2_sim.sensors.config import SensorConfigError, SensorSpec, navigation_from_value, sensors_from_mapping
+from bb2_sim.names import unknown_keys_hint
 from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["MissionError", "InitialState", "Limits", "Mission", "MISSIONS_DIR", "RPS_PATH_MEAN_SPEED", "FORMAT",
@@ -287,7 +288,8 @@ def mission_from_dict(doc: Mapping[str, Any], *, base_dir: Path | None = None, n
             raise MissionError(f"format is {fmt!r}, expected {FORMAT!r}")
         unknown = sorted(set(doc) - _TOP_KEYS)
         if unknown:
-            raise MissionError(f"unknown key(s) {unknown}; allowed: {sorted(_TOP_KEYS - {'format'})}")
+            raise MissionError(f"unknown key(s) {unknown}{unknown_keys_hint(unknown, _TOP_KEYS)}; "
+                               f"allowed: {sorted(_TOP_KEYS - {'format'})}")
         if "path" not in doc or doc["path"] is None:
             raise MissionError("missing 'path' (a shipped path name, a path file or an inline path)")
         try:
@@ -315,7 +317,8 @@ def mission_from_dict(doc: Mapping[str, Any], *, base_dir: Path | None = None, n
             raise MissionError(f"initial must be a mapping, got {ini!r}")
         bad = sorted(set(ini) - _INITIAL_KEYS)
         if bad:
-            raise MissionError(f"unknown key(s) in initial: {bad}; allowed: {sorted(_INITIAL_KEYS)}")
+            raise MissionError(f"unknown key(s) in initial: {bad}{unknown_keys_hint(bad, _INITIAL_KEYS)}; "
+                               f"allowed: {sorted(_INITIAL_KEYS)}")
         pos = ini.get("position_m")
         if pos is not None:
             fr = ini.get("frame", "native")
@@ -385,7 +388,8 @@ def mission_from_dict(doc: Mapping[str, Any], *, base_dir: Path | None = None, n
             raise MissionError(f"limits must be a mapping, got {lim!r}")
         bad = sorted(set(lim) - _LIMIT_KEYS)
         if bad:
-            raise MissionError(f"unknown key(s) in limits: {bad}; allowed: {sorted(_LIMIT_KEYS)}")
+            raise MissionError(f"unknown key(s) in limits: {bad}{unknown_keys_hint(bad, _LIMIT_KEYS)}; "
+                               f"allowed: {sorted(_LIMIT_KEYS)}")
         limits = Limits(
             min_hull_clearance_m=_number(lim.get("min_hull_clearance_m", 0.0), "limits.min_hull_clearance_m"),
             max_cg_z_m=None if lim.get("max_cg_z_m") is None else _number(lim["max_cg_z_m"], "limits.max_cg_z_m"))

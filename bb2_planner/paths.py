@@ -28,6 +28,7 @@ import numpy as np
 import yaml
 
 from bb2_planner.bernstein import FRAMES, BernsteinPath, PathError
+from bb2_sim.names import unknown_keys_hint
 from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["PathError", "FORMAT", "DATA_DIR", "path_from_dict", "path_to_dict", "load_path",
@@ -67,7 +68,8 @@ def path_from_dict(data: dict[str, Any], *, where: str = "path") -> BernsteinPat
             raise PathError(f"version {data.get('version')} is newer than this reader ({VERSION})")
         unknown = sorted(set(map(str, data)) - PATH_KEYS)
         if unknown:  # a typo (t_0, t_f) would be read as its default or as missing
-            raise PathError(f"unknown key(s) {unknown}; allowed: {sorted(PATH_KEYS)}")
+            raise PathError(f"unknown key(s) {unknown}{unknown_keys_hint(unknown, PATH_KEYS)}; "
+                            f"allowed: {sorted(PATH_KEYS)}")
         for key in ("frame", "tf", "control_points"):
             if key not in data:
                 raise PathError(f"missing key {key!r}")

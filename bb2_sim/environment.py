@@ -36,6 +36,7 @@ import numpy as np
 
 from .constants import G_M_S2
 from .current import Current
+from .names import unknown_keys_hint
 from .sea import (AuthorsTableSea, ComponentSea, Cos2sSpreading, Sea, SeaInputError, WaveComponents, calm_sea,
                   discretise, read_components_csv, regular_components, sea_state_hs_tp, spectrum)
 
@@ -251,7 +252,8 @@ def sea_from_mapping(doc: Mapping[str, Any] | None, *, where: str = "sea", base_
         raise SeaInputError(f"{where} must be a mapping of {', '.join(SEA_KEYS)}, got {doc!r}")
     bad = sorted(set(doc) - set(SEA_KEYS))
     if bad:
-        raise SeaInputError(f"unknown key(s) in {where}: {bad}; allowed: {list(SEA_KEYS)}")
+        raise SeaInputError(f"unknown key(s) in {where}: {bad}{unknown_keys_hint(bad, SEA_KEYS)}; "
+                            f"allowed: {list(SEA_KEYS)}")
     d = {k: v for k, v in doc.items() if v is not None}
     kw: dict[str, Any] = {}
     spec = d.get("spectrum")
@@ -348,7 +350,8 @@ def current_from_mapping(doc: Mapping[str, Any] | None, *, where: str = "current
         raise SeaInputError(f"{where} must be a mapping of {', '.join(CURRENT_KEYS)}, got {doc!r}")
     bad = sorted(set(doc) - set(CURRENT_KEYS))
     if bad:
-        raise SeaInputError(f"unknown key(s) in {where}: {bad}; allowed: {list(CURRENT_KEYS)}")
+        raise SeaInputError(f"unknown key(s) in {where}: {bad}{unknown_keys_hint(bad, CURRENT_KEYS)}; "
+                            f"allowed: {list(CURRENT_KEYS)}")
     if doc and "speed_mps" not in doc:  # a heading or profile of no current: a forgotten speed, not a calm
         raise SeaInputError(f"{where}: {', '.join(sorted(doc))} without speed_mps: give the current's speed (m/s, "
                             "0 for none)")

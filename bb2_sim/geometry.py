@@ -38,6 +38,7 @@ import trimesh
 import yaml
 
 from bb2_sim.frames import rotation_native
+from bb2_sim.names import unknown_keys_hint
 from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["HullMeshError", "HullSurfaces", "generate_bb2_surfaces", "load_surface_dir", "load_hull",
@@ -254,7 +255,8 @@ def _manifest(directory: Path) -> tuple[dict[str, list[str]], str]:
             raise HullMeshError(f"{MANIFEST}: expected a mapping with 'coordinates' and {', '.join(GROUPS)}")
         unknown = set(m) - set(GROUPS) - {"coordinates"}
         if unknown:
-            raise HullMeshError(f"{MANIFEST}: unknown keys {sorted(unknown)}; allowed: coordinates, "
+            raise HullMeshError(f"{MANIFEST}: unknown keys {sorted(unknown)}"
+                                f"{unknown_keys_hint(unknown, [*GROUPS, 'coordinates'])}; allowed: coordinates, "
                                 f"{', '.join(GROUPS)}")
         coords = m.get("coordinates")
         if coords not in COORDINATES:

@@ -20,6 +20,7 @@ import numpy as np
 from .autopilot_v12 import V12Autopilot, autopilot_v12_gains
 from .integrator import NonFiniteStateError, Simulator, StepRecord, check_substeps
 from .model import BB2Model
+from .names import did_you_mean
 from .xplane import plane_angles_deg
 from .yaml_files import load as load_yaml
 
@@ -128,11 +129,8 @@ def maneuver_settings(name: str, **overrides) -> ManeuverSettings:
     known = {f.name for f in fields(ManeuverSettings)}
     bad = set(d) - known
     if bad:
-        import difflib
-
         settable = sorted(known - {"name", "doc", "environment"} | {"sea", "current"})
-        hints = [f"{b!r} (did you mean {close[0]!r}?)" if (close := difflib.get_close_matches(b, settable, 1, 0.6))
-                 else repr(b) for b in sorted(bad)]
+        hints = [repr(b) + did_you_mean(b, settable) for b in sorted(bad)]
         raise ManeuverError(f"unknown maneuver setting(s): {', '.join(hints)}; known: {', '.join(settable)}")
     if "planes_deg" in d:
         d["planes_deg"] = tuple(float(v) for v in d["planes_deg"])

@@ -72,6 +72,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
+from bb2_sim.names import did_you_mean
 from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
 
 from bb2_ros.container import NODE_CLASSES
@@ -416,8 +417,6 @@ def check_params_file(path: Path, graph_params_file: Path = GRAPH_PARAMS_FILE) -
     (``rate_hzz``, a node ``simulatr``) flew the mission on the defaults without a word.  ``graph_params_file``:
     the graph's own params file, which lists every declared parameter (the launch files pass the installed
     share/bb2_bringup/config/bb2_graph.yaml)."""
-    import difflib
-
     data = _load_yaml_mapping(path, "params file")
     for node, body in data.items():
         if not isinstance(body, dict) or not isinstance(body.get("ros__parameters"), dict):
@@ -431,17 +430,14 @@ def check_params_file(path: Path, graph_params_file: Path = GRAPH_PARAMS_FILE) -
         if name not in known:
             if name in (CONTAINER.name, FOXGLOVE.name):
                 continue
-            close = difflib.get_close_matches(name, sorted(known), 1, 0.6)
-            raise LaunchError(f"params file {path}: {key!r} is no node of the graph"
-                              + (f" (did you mean {close[0]!r}?)" if close else "")
+            raise LaunchError(f"params file {path}: {key!r} is no node of the graph" + did_you_mean(name, known)
                               + f"; nodes: {', '.join(n for n in known if n != '/**')}, or '/**'")
         for param in _parameter_names(body["ros__parameters"]):
             if param in known[name] or param.split(".", 1)[0] in ROS_OWN_PARAMETERS:
                 continue
-            close = difflib.get_close_matches(param, sorted(known[name]), 1, 0.6)
             raise LaunchError(f"params file {path}: {key}: parameter {param!r} is declared by "
                               + ("no node of the graph" if name == "/**" else f"no {name}")
-                              + (f" (did you mean {close[0]!r}?)" if close else "")
+                              + did_you_mean(param, known[name])
                               + "; ROS would ignore it")
 
 
@@ -498,8 +494,6 @@ def check_without(value: str | Sequence[str], option: str = "without") -> tuple[
     """The node names of ``value`` (comma-separated, or a sequence) checked against :data:`REPLACEABLE`:
     :class:`LaunchError` naming an unknown one (with the likely one), one named twice, the simulator (the boat
     itself) or the recorder (not recording is ``record:=false`` / ``--no-record``)."""
-    import difflib
-
     names = [n.strip() for n in (value.split(",") if isinstance(value, str) else value) if n.strip()]
     for n in names:
         if n == "simulator":
@@ -508,8 +502,7 @@ def check_without(value: str | Sequence[str], option: str = "without") -> tuple[
             raise LaunchError(f"{option}: leave the recorder out with "
                               + ("--no-record" if option.startswith("--") else "record:=false"))
         if n not in REPLACEABLE:
-            close = difflib.get_close_matches(n, REPLACEABLE, 1, 0.6)
-            raise LaunchError(f"{option}: unknown node {n!r}" + (f" (did you mean {close[0]!r}?)" if close else "")
+            raise LaunchError(f"{option}: unknown node {n!r}" + did_you_mean(n, REPLACEABLE)
                               + f"; nodes that may be left out: {', '.join(REPLACEABLE)}")
         if names.count(n) > 1:
             raise LaunchError(f"{option}: node {n!r} is named twice")

@@ -19,6 +19,7 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
+from bb2_sim.names import unknown_keys_hint
 from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["SensorConfigError", "FORMAT", "PRESETS", "DATA_DIR", "SENSOR_NAMES", "Mounting", "GyroConfig",
@@ -68,7 +69,8 @@ def _block(doc: Any, what: str, keys: set[str], optional: set[str] = frozenset()
         raise SensorConfigError(f"{what} must be a mapping, got {doc!r}")
     unknown = sorted(set(doc) - keys - optional)
     if unknown:
-        raise SensorConfigError(f"unknown key(s) in {what}: {unknown}; allowed: {sorted(keys | optional)}")
+        raise SensorConfigError(f"unknown key(s) in {what}: {unknown}{unknown_keys_hint(unknown, keys | optional)}; "
+                                f"allowed: {sorted(keys | optional)}")
     missing = sorted(keys - set(doc))
     if missing:
         raise SensorConfigError(f"missing key(s) in {what}: {missing}")
@@ -483,7 +485,8 @@ def suite_config_from_mapping(doc: Mapping[str, Any], *, where: str = "sensor su
         allowed = set(SENSOR_NAMES) | {"format", "name", "description", "faults"}
         unknown = sorted(set(doc) - allowed)
         if unknown:
-            raise SensorConfigError(f"unknown key(s) {unknown}; allowed: {sorted(allowed)}")
+            raise SensorConfigError(f"unknown key(s) {unknown}{unknown_keys_hint(unknown, allowed)}; "
+                                    f"allowed: {sorted(allowed)}")
         kw: dict[str, Any] = {}
         for s in SENSOR_NAMES:
             block = doc.get(s)
@@ -543,7 +546,8 @@ def sensors_from_mapping(doc: Any, *, base_dir: Path | None = None, where: str =
                                 f"faults; got {doc!r}")
     bad = sorted(set(doc) - {"suite", "seed", "faults"})
     if bad:
-        raise SensorConfigError(f"unknown key(s) in {where}: {bad}; allowed: ['faults', 'seed', 'suite']")
+        hint = unknown_keys_hint(bad, ("faults", "seed", "suite"))
+        raise SensorConfigError(f"unknown key(s) in {where}: {bad}{hint}; allowed: ['faults', 'seed', 'suite']")
     spec = doc.get("suite", "tactical")
     suite = load_suite_config(spec, base_dir=base_dir)
     seed = doc.get("seed", 0)

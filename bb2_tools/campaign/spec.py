@@ -16,6 +16,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import yaml
 
+from bb2_sim.names import unknown_keys_hint
 from bb2_sim.yaml_files import load as load_yaml
 from bb2_tools.campaign.errors import SpecError
 
@@ -349,7 +350,7 @@ def parse_spec(doc: Any, *, spec_file: str | Path | None = None) -> CampaignSpec
         raise SpecError(f"SPEC must be a mapping of settings, got {type(doc).__name__}")
     unknown = sorted(set(map(str, doc)) - _TOP)
     if unknown:
-        raise SpecError(f"unknown key(s) {unknown}; allowed: {sorted(_TOP)}")
+        raise SpecError(f"unknown key(s) {unknown}{unknown_keys_hint(unknown, _TOP)}; allowed: {sorted(_TOP)}")
     spec_dir = Path(spec_file).resolve().parent if spec_file else None
     has_m, has_man = doc.get("mission") is not None, doc.get("maneuver") is not None
     if has_m == has_man:

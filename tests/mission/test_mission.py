@@ -168,6 +168,13 @@ def test_broaching_stops_and_reports(model):
     ({"path": "circle_r400", "duration_s": -5.0}, "duration_s must be > 0"),
     ({"path": "circle_r400", "initial": {"speed_mps": 0}}, "initial.speed_mps must be > 0"),
     ({"path": "circle_r400", "initial": {"heading": 0}}, "unknown key(s) in initial"),
+    # the likely key named, as a stack's or a params file's typo is
+    ({"path": "circle_r400", "duraton_s": 60}, "unknown key(s) ['duraton_s'] (did you mean 'duration_s'?); allowed:"),
+    ({"path": "circle_r400", "initial": {"speed_kn": 3}}, "['speed_kn'] (did you mean 'speed_mps'?)"),
+    ({"path": "circle_r400", "limits": {"max_cg_z": -16.0}}, "['max_cg_z'] (did you mean 'max_cg_z_m'?)"),
+    ({"path": "circle_r400", "sea": {"spectrum": "jonswap", "hs": 2, "tpp": 8}}, "['tpp'] (did you mean 'tp'?)"),
+    ({"path": "circle_r400", "stak": "rate_2022", "profil": "iowa"},
+     "unknown key(s) ['profil', 'stak'] (did you mean 'profile' for 'profil', 'stack' for 'stak'?)"),
     ({"path": "circle_r400", "adaptation": "yes"}, "adaptation must be true or false"),
     ({"path": "circle_r400", "sea_state": 11}, "sea state"),
     ({"path": "circle_r400", "terrain": "moon"}, "terrain 'moon'"),
