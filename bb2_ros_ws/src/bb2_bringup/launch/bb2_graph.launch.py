@@ -302,8 +302,8 @@ def _graph(context):
     check_time_mode(a["time_mode"])
     compose = flag(a["compose"], "compose")
     # claimed last, every other check passed: a refused launch leaves no directory behind
-    stem = f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}" + (f"_{a['namespace'].strip('/')}" if a["namespace"]
-                                                                else "")
+    ns_part = a["namespace"].strip("/").replace("/", "_")  # as bb2-launch names it: one directory, not nested
+    stem = f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}" + (f"_{ns_part}" if ns_part else "")
     bag = claim_bag(a["bag"], a["bag_dir"], stem) if record else None
     acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
                 params_file=params_file, compose=compose, foxglove_port=fox_port,
