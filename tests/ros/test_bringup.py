@@ -297,7 +297,10 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("bb2_graph.launch.py", ["without:=mixr"], "launch argument without: unknown node 'mixr' (did you mean "
              "'mixer'?); nodes that may be left out: planner, path_following, l1_autopilot, mixer"),
             ("bb2_graph.launch.py", ["without:=simulator"], "the simulator is the boat itself"),
-            ("fleet.launch.py", ["without:=mixer,mixer"], "launch argument without: node 'mixer' is named twice")):
+            ("fleet.launch.py", ["without:=mixer,mixer"], "launch argument without: node 'mixer' is named twice"),
+            ("bb2_graph.launch.py", ["namespace:=9boat"], "launch argument namespace must be a ROS 2 namespace "
+             "(segments of letters, digits and '_', each starting with a letter, separated by '/'), got '9boat'"),
+            ("fleet.launch.py", ["boats:=boat1,boat-2"], "launch argument boats: a boat must be a ROS 2 namespace")):
         p = launch(ws, domain, launch_file, *args, *([] if "record:=true" in args else ["record:=false"]))
         out = finish(p, 60)
         assert p.returncode == 1, (args, out[-3000:])

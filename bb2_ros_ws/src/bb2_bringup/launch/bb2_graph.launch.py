@@ -53,7 +53,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.substitutions import ExecutableInPackage
 
-from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
+from bb2_msgs_py.contract import RECORDER_ACK_WINDOW, check_namespace
 from bb2_sim.outputs import OutputError, claim_run_dir
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
 from bb2_tools.launcher import check_foxglove_port, check_mission, check_params_file, check_without
@@ -300,6 +300,7 @@ def _graph(context):
     if fox_port is not None:  # out of range or taken: said now, as bb2-launch --foxglove says it
         check_foxglove_port(fox_port, "launch argument foxglove_port")
     check_time_mode(a["time_mode"])
+    check_namespace(a["namespace"], "launch argument namespace")  # (else every node refused it, one by one)
     compose = flag(a["compose"], "compose")
     # claimed last, every other check passed: a refused launch leaves no directory behind
     ns_part = a["namespace"].strip("/").replace("/", "_")  # as bb2-launch names it: one directory, not nested

@@ -60,7 +60,7 @@ def _fleet(context):
     fleet = load_fleet(fleet_file(a["fleet"])) if a["fleet"].strip() else None
     name = fleet.name if fleet is not None else "fleet"
     if fleet is None:
-        boats = [b.strip().strip("/") for b in a["boats"].split(",") if b.strip()]
+        boats = [graph.check_namespace(b, "launch argument boats: a boat") for b in a["boats"].split(",") if b.strip()]
         if not boats or len(set(boats)) != len(boats):
             raise RuntimeError(f"launch argument boats must name distinct namespaces, got {a['boats']!r}")
         missions = [m.strip() for m in a["missions"].split(",") if m.strip()]
