@@ -39,6 +39,8 @@ node's ROS arguments apply to it alone), whose exit ends the launch.
 """
 from __future__ import annotations
 
+import contextlib
+import shutil
 import time
 from pathlib import Path
 
@@ -285,6 +287,18 @@ def claim_bag(bag: str, bag_dir: str, stem: str) -> Path:
                           ) from None
 
 
+@contextlib.contextmanager
+def released_on_error(bag: Path | None):
+    """The bag directory this launch claimed (:func:`claim_bag`) goes again if what follows raises: the launch is
+    refused, and the directory holds only what it wrote (its claim file, a fleet's missions)."""
+    try:
+        yield
+    except BaseException:
+        if bag is not None:
+            shutil.rmtree(bag, ignore_errors=True)
+        raise
+
+
 def _graph(context):
     a = {k: LaunchConfiguration(k).perform(context) for k in ARGUMENTS}
     mission = mission_file(a["mission"])
@@ -300,15 +314,15 @@ def _graph(context):
     if fox_port is not None:  # out of range or taken: said now, as bb2-launch --foxglove says it
         check_foxglove_port(fox_port, "launch argument foxglove_port")
     check_time_mode(a["time_mode"])
-    check_namespace(a["namespace"], "launch argument namespace")  # (else every node refused it, one by one)
+    check_namespace(a["namespace"], "launch argument namespace")  # (launch_ros refuses it later, in its words)
     compose = flag(a["compose"], "compose")
     # claimed last, every other check passed: a refused launch leaves no directory behind
     ns_part = a["namespace"].strip("/").replace("/", "_")  # as bb2-launch names it: one directory, not nested
     stem = f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}" + (f"_{ns_part}" if ns_part else "")
     bag = claim_bag(a["bag"], a["bag_dir"], stem) if record else None
-    acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
-                params_file=params_file, compose=compose, foxglove_port=fox_port,
-                without=without)
+    with released_on_error(bag):
+        acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
+                    params_file=params_file, compose=compose, foxglove_port=fox_port, without=without)
     said = LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
                        + (" | composed" if compose else "")
                        + (f" | namespace /{a['namespace'].strip('/')}" if a["namespace"] else "")

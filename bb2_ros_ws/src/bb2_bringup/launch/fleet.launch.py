@@ -25,7 +25,6 @@ the params file are checked before any node starts.  Ctrl-C stops every node cle
 from __future__ import annotations
 
 import importlib.util
-import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -73,28 +72,24 @@ def _fleet(context):
     without = graph.check_without(a["without"], "launch argument without")
     # the bag directory, claimed as bb2-launch claims its run directory (fleet_<date>, _2 ... when taken)
     root = graph.claim_bag("", a["bag_dir"], f"{name}_{time.strftime('%Y%m%d_%H%M%S')}") if record else None
-    try:
+    with graph.released_on_error(root):
         if fleet is not None:  # every boat's mission as a file of its own, kept with the bag (the nodes read it)
             files = fleet.write_missions(root / "missions" if root is not None else tempfile.mkdtemp(prefix=f"{name}_"))
             boats, missions = list(files), [str(f) for f in files.values()]
         checked = [(ns, graph.mission_file(m)) for ns, m in zip(boats, missions)]
         warnings = [(ns, graph.check_mission(mission)) for ns, mission in checked]  # every boat's, before any starts
-    except BaseException:
-        if root is not None:  # refused: the directory claimed above holds only what this launch wrote
-            shutil.rmtree(root, ignore_errors=True)
-        raise
-    actions, sims = [], []
-    ended: set[int] = set()
-    if record:
-        recorder = graph.fleet_recorder(root, boats)
-        actions += [LogInfo(msg=f"[bb2_bringup] fleet bag {root}"), recorder,
-                    graph.watch(recorder, "the fleet's recorder", lambda: len(ended) == len(sims))]
-    for (ns, mission), (_ns, warning) in zip(checked, warnings):
-        acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=None, namespace=ns,
-                          params_file=params_file, stop_launch=False, own_recorder=False, without=without)
-        sims.append(acts[-1])
-        actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}"),
-                    *([LogInfo(msg=f"[bb2_bringup] warning: /{ns}: {warning}")] if warning else []), *acts]
+        actions, sims = [], []
+        ended: set[int] = set()
+        if record:
+            recorder = graph.fleet_recorder(root, boats)
+            actions += [LogInfo(msg=f"[bb2_bringup] fleet bag {root}"), recorder,
+                        graph.watch(recorder, "the fleet's recorder", lambda: len(ended) == len(sims))]
+        for (ns, mission), (_ns, warning) in zip(checked, warnings):
+            acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=None, namespace=ns,
+                              params_file=params_file, stop_launch=False, own_recorder=False, without=without)
+            sims.append(acts[-1])
+            actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}"),
+                        *([LogInfo(msg=f"[bb2_bringup] warning: /{ns}: {warning}")] if warning else []), *acts]
     failed: list[str] = []
     names = {id(sim): ns for sim, ns in zip(sims, boats)}
 
