@@ -67,7 +67,7 @@ ARGUMENTS = {
     "mission": ("canyon", "a mission in share/bb2_bringup/missions (name without .yaml) or a mission file"),
     "time_mode": ("lockstep", "lockstep | realtime"),
     "record": ("true", "true | false: record every topic to a rosbag2 MCAP bag"),
-    "bag": ("", "bag directory ('' = <bag_dir>/<mission>_<YYYYmmdd_HHMMSS>[_<namespace>])"),
+    "bag": ("", "a new or empty bag directory ('' = <bag_dir>/<mission>_<YYYYmmdd_HHMMSS>[_<namespace>][_2 ...])"),
     "bag_dir": ("bags", "where bags go when bag is ''"),
     "namespace": ("", "'' or NAME: nodes in /NAME, topics /NAME/bb2/... and /NAME/clock"),
     "params_file": (str(SHARE / "config" / "bb2_graph.yaml"), "the graph's ROS 2 params file"),
