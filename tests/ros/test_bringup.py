@@ -300,7 +300,9 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("fleet.launch.py", ["without:=mixer,mixer"], "launch argument without: node 'mixer' is named twice"),
             ("bb2_graph.launch.py", ["namespace:=9boat"], "launch argument namespace must be a ROS 2 namespace "
              "(segments of letters, digits and '_', each starting with a letter, separated by '/'), got '9boat'"),
-            ("fleet.launch.py", ["boats:=boat1,boat-2"], "launch argument boats: a boat must be a ROS 2 namespace")):
+            ("fleet.launch.py", ["boats:=boat1,boat-2"], "launch argument boats: a boat must be a ROS 2 namespace"),
+            ("fleet.launch.py", ["boats:=b1,b2,b3", f"missions:={tmp / 'short.yaml'},{tmp / 'short.yaml'}"],
+             "launch argument missions: 2 missions for 3 boats (give one for every boat, or one per boat)")):
         p = launch(ws, domain, launch_file, *args, *([] if "record:=true" in args else ["record:=false"]))
         out = finish(p, 60)
         assert p.returncode == 1, (args, out[-3000:])

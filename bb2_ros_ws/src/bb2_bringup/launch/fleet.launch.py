@@ -66,7 +66,8 @@ def _fleet(context):
         if len(missions) == 1:
             missions *= len(boats)
         if len(missions) != len(boats):
-            raise RuntimeError(f"{len(missions)} missions for {len(boats)} boats")
+            raise RuntimeError(f"launch argument missions: {len(missions)} missions for {len(boats)} boats (give one "
+                               "for every boat, or one per boat)")
     graph.check_time_mode(a["time_mode"])
     params_file = graph.checked_params_file(a["params_file"])
     without = graph.check_without(a["without"], "launch argument without")
