@@ -302,7 +302,7 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
              "(segments of letters, digits and '_', each starting with a letter, separated by '/'), got '9boat'"),
             ("fleet.launch.py", ["boats:=boat1,boat-2"], "launch argument boats: a boat must be a ROS 2 namespace"),
             ("fleet.launch.py", ["boats:=b1,b2,b3", f"missions:={tmp / 'short.yaml'},{tmp / 'short.yaml'}"],
-             "launch argument missions: 2 missions for 3 boats (give one for every boat, or one per boat)")):
+             "launch argument missions: 2 missions for 3 boats (give one mission for all the boats, or one per boat)")):
         p = launch(ws, domain, launch_file, *args, *([] if "record:=true" in args else ["record:=false"]))
         out = finish(p, 60)
         assert p.returncode == 1, (args, out[-3000:])

@@ -67,7 +67,7 @@ def _fleet(context):
             missions *= len(boats)
         if len(missions) != len(boats):
             raise RuntimeError(f"launch argument missions: {len(missions)} missions for {len(boats)} boats (give one "
-                               "for every boat, or one per boat)")
+                               "mission for all the boats, or one per boat)")
     graph.check_time_mode(a["time_mode"])
     params_file = graph.checked_params_file(a["params_file"])
     without = graph.check_without(a["without"], "launch argument without")
