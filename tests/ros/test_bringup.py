@@ -326,9 +326,13 @@ def test_a_failed_run_makes_ros2_launch_exit_1(ws):
     assert "parameter 'rate_hz' must be > 0 and finite, got -5.0" in out, out[-3000:]
     assert "simulator exited (code 2): stopping the graph" in out, out[-3000:]
     assert "the simulator exited with code 2: the run failed" in out, out[-3000:]
-    p = launch(ws, domain, "fleet.launch.py", f"missions:={tmp / 'short.yaml'}", "record:=false",
+    # a fleet file, not recorded: boat2's mission (its own start) is written to a folder of the launch's own
+    (tmp / "failing.yaml").write_text("name: failing\nboats:\n  boat1: short.yaml\n  boat2:\n    mission: short.yaml\n"
+                                      "    initial: {offset_m: [0.0, 20.0, 0.0]}\n")
+    p = launch(ws, domain, "fleet.launch.py", f"fleet:={tmp / 'failing.yaml'}", "record:=false",
                f"params_file:={tmp / 'bad_rate_boat1.yaml'}")
     out = finish(p, 180)
+    assert "failing_" in out and not list((tmp / "launch_tmp").glob("failing_*")), out[-3000:]  # removed at the end
     assert p.returncode == 1, out[-3000:]
     assert "/boat2/simulator exited (code 0); 2 of 2 boats done" in out, out[-3000:]  # boat2 flew to its end
     # boat1's nodes went with its simulator (they ran on, idle, until the last boat ended): before boat2 ended,

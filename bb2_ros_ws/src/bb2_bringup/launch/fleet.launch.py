@@ -25,13 +25,14 @@ the params file are checked before any node starts.  Ctrl-C stops every node cle
 from __future__ import annotations
 
 import importlib.util
+import shutil
 import tempfile
 import time
 from pathlib import Path
 
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler
-from launch.event_handlers import OnProcessExit
+from launch.event_handlers import OnProcessExit, OnShutdown
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 
@@ -73,9 +74,11 @@ def _fleet(context):
     without = graph.check_without(a["without"], "launch argument without")
     # the bag directory, claimed as bb2-launch claims its run directory (fleet_<date>, _2 ... when taken)
     root = graph.claim_bag("", a["bag_dir"], f"{name}_{time.strftime('%Y%m%d_%H%M%S')}") if record else None
-    with graph.released_on_error(root):
+    # not recorded, a fleet file's missions go to a folder of their own, removed as the launch ends
+    scratch = Path(tempfile.mkdtemp(prefix=f"{name}_")) if root is None and fleet is not None else None
+    with graph.released_on_error(root or scratch):
         if fleet is not None:  # every boat's mission as a file of its own, kept with the bag (the nodes read it)
-            files = fleet.write_missions(root / "missions" if root is not None else tempfile.mkdtemp(prefix=f"{name}_"))
+            files = fleet.write_missions(root / "missions" if root is not None else scratch)
             boats, missions = list(files), [str(f) for f in files.values()]
         checked = [(ns, graph.mission_file(m)) for ns, m in zip(boats, missions)]
         warnings = [(ns, graph.check_mission(mission)) for ns, mission in checked]  # every boat's, before any starts
@@ -111,6 +114,9 @@ def _fleet(context):
 
     for sim in sims:
         actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=on_exit)))
+    if scratch is not None:  # (the nodes read their missions as they start)
+        actions.append(RegisterEventHandler(OnShutdown(on_shutdown=lambda _event, _context: shutil.rmtree(
+            scratch, ignore_errors=True))))
     return actions
 
 
