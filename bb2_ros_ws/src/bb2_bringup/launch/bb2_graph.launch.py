@@ -31,11 +31,12 @@ mission duration, or ``end_at_progress``: the path flown) and exits; its exit st
 recorder finishes its bag on the SIGINT).  A simulator that exits with an error (the run failed: the boat diverged,
 or a parameter's value was refused) makes ``ros2 launch`` exit 1.  A node that dies before the run's end stops the
 graph and fails the launch too (without a controller the simulator would step on held planes, one step a second;
-without the recorder it waits for a reader); the Foxglove server alone may go (said; the run goes on).  The
-mission, the params file (a node or a parameter the graph does not have: ROS would ignore it), the bag directory
-and the Foxglove port are checked before any node starts, as bb2-launch checks them.  Ctrl-C stops every node
-cleanly.  With ``compose:=true`` the same nodes with the same arguments run in one ``container`` process (each
-node's ROS arguments apply to it alone), whose exit ends the launch.
+without the recorder it waits for a reader); the Foxglove server alone may go (said; the run goes on).  A node
+killed by a signal left Fast DDS's shared-memory files in /dev/shm: they are removed as it exits (``fastdds shm
+clean``), as bb2-launch removes them.  The mission, the params file (a node or a parameter the graph does not have:
+ROS would ignore it), the bag directory and the Foxglove port are checked before any node starts, as bb2-launch
+checks them.  Ctrl-C stops every node cleanly.  With ``compose:=true`` the same nodes with the same arguments run in
+one ``container`` process (each node's ROS arguments apply to it alone), whose exit ends the launch.
 """
 from __future__ import annotations
 
@@ -58,6 +59,7 @@ from launch_ros.substitutions import ExecutableInPackage
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW, check_namespace
 from bb2_sim.outputs import OutputError, claim_run_dir
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
+from bb2_tools.dds_shm import clean_stale_files
 from bb2_tools.launcher import check_foxglove_port, check_mission, check_params_file, check_without
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
@@ -216,11 +218,12 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     # each boat's bb2-launch stops its own graph); alone the whole launch stops anyway
     own = [act for act in actions if isinstance(act, (Node, ExecuteProcess))]
 
-    def over(_event, context):
+    def over(event, context):
         run_over.append(True)
+        said = cleaned_after_kill(event.returncode, who(what))
         if stop_launch or context.is_shutdown:
-            return None
-        return [EmitEvent(event=ShutdownProcess(process_matcher=matches_action(act))) for act in own]
+            return said or None
+        return [*said, *(EmitEvent(event=ShutdownProcess(process_matcher=matches_action(act))) for act in own)]
 
     actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=over)))
     if stop_launch:
@@ -247,17 +250,31 @@ def watch(action, who: str, run_over, *, essential: bool = True) -> RegisterEven
     """A handler of ``action``'s exit (a node's process; ``who`` names it) before the run is over (``run_over()``
     false) and the launch is not stopping: an ``essential`` node's fails the launch (exit 1, every node stopped:
     without a controller the simulator would step on held planes, one step a second, and without the recorder
-    it waits for a reader; bb2-launch stops the graph the same way); any other's is said and the run goes on."""
+    it waits for a reader; bb2-launch stops the graph the same way); any other's is said and the run goes on.
+    A process killed by a signal (whenever) left its Fast DDS shared-memory files: they go at once
+    (:func:`cleaned_after_kill`), as bb2-launch removes them after its run."""
     def on_exit(event, context):
-        if context.is_shutdown or run_over():
-            return None
         rc = event.returncode
+        said = cleaned_after_kill(rc, who)
+        if context.is_shutdown or run_over():
+            return said or None
         how = f"was killed by signal {-rc}" if rc < 0 else f"exited (code {rc})"
         if not essential:
-            return [LogInfo(msg=f"[bb2_bringup] {who} {how}: the run goes on without it")]
-        return [fail(f"{who} {how} before the run's end: stopping the graph (the run is not whole; its log above "
-                     "says why)")]
+            return [*said, LogInfo(msg=f"[bb2_bringup] {who} {how}: the run goes on without it")]
+        return [*said, fail(f"{who} {how} before the run's end: stopping the graph (the run is not whole; its log "
+                            "above says why)")]
     return RegisterEventHandler(OnProcessExit(target_action=action, on_exit=on_exit))
+
+
+def cleaned_after_kill(returncode: int | None, who: str) -> list:
+    """A process that ended by a signal left its Fast DDS shared-memory files in /dev/shm: ``fastdds shm clean``
+    removes those whose owner is gone (:mod:`bb2_tools.dds_shm`); a LogInfo saying so, when it removed any."""
+    if returncode is None or returncode >= 0:
+        return []
+    cleaned = clean_stale_files()
+    if cleaned is None or not (cleaned.segments or cleaned.ports):
+        return []
+    return [LogInfo(msg=f"[bb2_bringup] {who} ended by a signal: {cleaned.line()}")]
 
 
 def fleet_recorder(bag: Path, boats: list[str]) -> Node:
