@@ -67,7 +67,7 @@ def duration_s(node: str, fault: str, mode: str) -> float:
 def node_pid(launcher_pid: int, node: str) -> int | None:
     """The pid of ``node``'s process among the launcher's descendants (entry point, lib executable or ros2 run;
     the deepest match: under ``ros2 run`` the node's own process)."""
-    pat = re.compile(rf"(bb2_ros\.{node} import|lib/bb2_ros/{node}\b|bb2_ros {node}\b)")
+    pat = re.compile(rf"(bb2_(?:ros|tools)\.{node}:main|lib/bb2_(?:ros|tools)/{node}\b|bb2_(?:ros|tools) {node}\b)")
     found = None
     for pid in descendants(launcher_pid):  # parents before children
         try:

@@ -112,7 +112,7 @@ def _simulator_pid(boat: str) -> int | None:
             cmd = stat.read_bytes().replace(b"\0", b" ").decode(errors="replace")
         except OSError:
             continue
-        if re.search(r"(bb2_ros\.simulator import|lib/bb2_ros/simulator\b|bb2_ros simulator\b)", cmd) \
+        if re.search(r"(bb2_ros\.simulator:main|lib/bb2_ros/simulator\b|bb2_ros simulator\b)", cmd) \
                 and f"__ns:=/{boat} " in cmd + " ":
             return int(stat.parent.name)
     return None
