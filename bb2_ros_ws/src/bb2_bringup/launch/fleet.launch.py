@@ -18,9 +18,11 @@ with its own controllers (deterministic: a boat's run equals the same mission fl
                each boat's namespace (as in bb2_graph.launch.py)
 
 The launch ends when every boat's simulator has ended its run, with exit code 1 when any boat's simulator exited
-with an error (the other boats fly on to their end); a boat's other nodes stop when its simulator ends; any other node of a boat, or the fleet's recorder, that dies
-before its run's end stops every boat and fails the launch (as in bb2_graph.launch.py).  Every boat's mission and
-the params file are checked before any node starts.  Ctrl-C stops every node cleanly.
+with an error (the other boats fly on to their end); a boat's other nodes stop when its simulator ends; any other
+node of a boat, or the fleet's recorder, that dies before its run's end stops every boat and fails the launch (as in
+bb2_graph.launch.py).  Every boat's mission, the params file and the names are checked before any node starts.  Not
+recorded, a fleet file's missions are written to a temporary folder, removed as the launch ends.  Ctrl-C stops
+every node cleanly.
 """
 from __future__ import annotations
 
