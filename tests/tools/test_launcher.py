@@ -959,7 +959,7 @@ def test_bb2_launch_reports_a_killed_simulator_and_exits_nonzero(tmp_path, bb2_g
         seen = _wait_for_line(p, lambda line: re.search(r"sim +[1-9][0-9.]* s", line) is not None, timeout=90)
         sims = [pid for pid, cmd in _children(p.pid).items() if "simulator" in cmd]
         assert len(sims) == 1, _children(p.pid)
-        # its Fast DDS shared-memory segment (not a port: those may be shared): a killed process leaves it
+        # the Fast DDS shared-memory segments it maps (its own, which a killed process leaves, and its peers')
         with open(f"/proc/{sims[0]}/maps") as f:
             segments = {Path(m) for m in re.findall(r"(/dev/shm/fastrtps_[0-9a-f]{16})$", f.read(), re.M)}
         assert segments and all(s.exists() for s in segments), segments
