@@ -174,7 +174,11 @@ def main(argv: list[str] | None = None) -> int:
         check_code_importable(pkg_dirs)
         with tempfile.TemporaryDirectory(prefix="bb2_ros_ws_") as tmp:
             staged = [stage(p, Path(tmp)) for p in pkg_dirs]
-            cmd = [*pip, "install", "--no-deps", "--no-build-isolation", "--no-index", "--force-reinstall",
+            # into another prefix: --ignore-installed, not --force-reinstall, which first uninstalls the copy this
+            # environment holds (its lib/<pkg>/<exe> and ament index: `ros2 run` and bb2-launch's lib runner lost
+            # them whenever the test suite installed into a prefix of its own)
+            cmd = [*pip, "install", "--no-deps", "--no-build-isolation", "--no-index",
+                   "--ignore-installed" if args.prefix else "--force-reinstall",
                    "--disable-pip-version-check", *(["-q"] if args.quiet else []),
                    *(["--prefix", str(prefix)] if args.prefix else []), *map(str, staged)]
             rc = subprocess.call(cmd)

@@ -224,11 +224,23 @@ def test_colcon_install_command_lays_out_lib_and_share(tmp_path):
     assert not list((WS / "src").rglob("*.egg-info")), "colcon must leave the source space clean"
 
 
+def installed_files(prefix: Path) -> set[Path]:
+    """The files of install_into_venv.py's list for ``prefix`` that are there."""
+    r = subprocess.run([sys.executable, str(WS / "install_into_venv.py"), "--list", "--prefix", str(prefix)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    return {p for p in map(Path, r.stdout.split()) if p.is_file()}
+
+
 def test_install_into_prefix_gives_what_ros2_run_looks_for(tmp_path):
     prefix = tmp_path / "venv"
+    ours = installed_files(Path(sys.prefix))  # this environment's own install (run.sh setup), if it has one
     r = subprocess.run([sys.executable, str(WS / "install_into_venv.py"), "-q", "--prefix", str(prefix)],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
+    # left as it was: pip's --force-reinstall into another prefix first uninstalled this environment's copy, and
+    # after the suite `ros2 run` and bb2-launch's lib runner found no executables here
+    assert installed_files(Path(sys.prefix)) == ours, sorted(ours - installed_files(Path(sys.prefix)))[:5]
     for pkg in PACKAGES:
         assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / pkg).is_file()
         assert (prefix / "share" / pkg / "package.xml").read_text() == (WS / "src" / pkg / "package.xml").read_text()
