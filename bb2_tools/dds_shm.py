@@ -24,7 +24,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["Cleaned", "clean_stale_files", "fastdds_tool"]
+__all__ = ["Cleaned", "clean_after_kill", "clean_stale_files", "fastdds_tool"]
 
 
 @dataclass(frozen=True)
@@ -66,3 +66,13 @@ def clean_stale_files(timeout_s: float = 30.0) -> Cleaned | None:
     if p.returncode != 0 or seg is None or ports is None:
         return None
     return Cleaned(int(seg.group(1)), int(ports.group(1)))
+
+
+def clean_after_kill(who: str) -> str | None:
+    """After ``who`` (a node, or several: their names) ended by a signal: :func:`clean_stale_files`, and the line
+    that says what it removed (``"mixer ended by a signal: 1 stale Fast DDS shared-memory segment and 2 ports
+    removed ..."``), or None when it removed nothing (or the tool is not there)."""
+    cleaned = clean_stale_files()
+    if cleaned is None or not (cleaned.segments or cleaned.ports):
+        return None
+    return f"{who} ended by a signal: {cleaned.line()}"

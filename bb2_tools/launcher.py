@@ -79,7 +79,7 @@ from bb2_ros.container import NODE_CLASSES
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, PUBLISHED_DIR_ENV, REALTIME_CONTROLLERS
 from bb2_tools.bagfile import PUBLICATION_COUNTS_FILE, RECORDER_STATUS_NAME, status_source
-from bb2_tools.dds_shm import clean_stale_files
+from bb2_tools.dds_shm import clean_after_kill
 from bb2_tools.graph_monitor import END_AT, GraphMonitor, domain_monitor, format_status
 from bb2_tools.supervisor import (DEFAULT_MAX_RESTARTS, LaunchError, NodeExit, ProcessSpec, RestartPolicy,
                                   Supervisor, parse_restart_policies, uses_default_max)
@@ -529,11 +529,8 @@ def clean_after_killed(exits: list[NodeExit], say: Callable[[str], None]) -> Non
     shared-memory files in /dev/shm (memory); Fast DDS's own tool removes those whose owner is gone
     (:mod:`bb2_tools.dds_shm`), said when it removed any."""
     killed = sorted({ev.name for ev in exits if ev.returncode < 0})
-    if not killed:
-        return
-    cleaned = clean_stale_files()
-    if cleaned is not None and (cleaned.segments or cleaned.ports):
-        say(f"{', '.join(killed)} ended by a signal: {cleaned.line()}")
+    if killed and (line := clean_after_kill(", ".join(killed))):
+        say(line)
 
 
 def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params: Path | None = None,

@@ -59,7 +59,7 @@ from launch_ros.substitutions import ExecutableInPackage
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW, check_namespace
 from bb2_sim.outputs import OutputError, claim_run_dir
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
-from bb2_tools.dds_shm import clean_stale_files
+from bb2_tools.dds_shm import clean_after_kill
 from bb2_tools.launcher import check_foxglove_port, check_mission, check_params_file, check_without
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
@@ -268,13 +268,10 @@ def watch(action, who: str, run_over, *, essential: bool = True) -> RegisterEven
 
 def cleaned_after_kill(returncode: int | None, who: str) -> list:
     """A process that ended by a signal left its Fast DDS shared-memory files in /dev/shm: ``fastdds shm clean``
-    removes those whose owner is gone (:mod:`bb2_tools.dds_shm`); a LogInfo saying so, when it removed any."""
-    if returncode is None or returncode >= 0:
-        return []
-    cleaned = clean_stale_files()
-    if cleaned is None or not (cleaned.segments or cleaned.ports):
-        return []
-    return [LogInfo(msg=f"[bb2_bringup] {who} ended by a signal: {cleaned.line()}")]
+    removes those whose owner is gone (:func:`bb2_tools.dds_shm.clean_after_kill`); a LogInfo saying so, when it
+    removed any."""
+    line = clean_after_kill(who) if returncode is not None and returncode < 0 else None
+    return [LogInfo(msg=f"[bb2_bringup] {line}")] if line else []
 
 
 def fleet_recorder(bag: Path, boats: list[str]) -> Node:
@@ -331,18 +328,18 @@ def _graph(context):
     if fox_port is not None:  # out of range or taken: said now, as bb2-launch --foxglove says it
         check_foxglove_port(fox_port, "launch argument foxglove_port")
     check_time_mode(a["time_mode"])
-    check_namespace(a["namespace"], "launch argument namespace")  # (launch_ros refuses it later, in its words)
+    ns = check_namespace(a["namespace"], "launch argument namespace")  # (launch_ros refuses it later, in its words)
     compose = flag(a["compose"], "compose")
     # claimed last, every other check passed: a refused launch leaves no directory behind
-    ns_part = a["namespace"].strip("/").replace("/", "_")  # as bb2-launch names it: one directory, not nested
-    stem = f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}" + (f"_{ns_part}" if ns_part else "")
+    # (a nested namespace as bb2-launch names it: one directory, boat_a_b)
+    stem = f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}" + (f"_{ns.replace('/', '_')}" if ns else "")
     bag = claim_bag(a["bag"], a["bag_dir"], stem) if record else None
     with released_on_error(bag):
-        acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=a["namespace"],
+        acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=ns,
                     params_file=params_file, compose=compose, foxglove_port=fox_port, without=without)
     said = LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
                        + (" | composed" if compose else "")
-                       + (f" | namespace /{a['namespace'].strip('/')}" if a["namespace"] else "")
+                       + (f" | namespace /{ns}" if ns else "")
                        + (f" | without {', '.join(without)} (your nodes in their place)" if without else "")
                        + (f" | bag {bag}" if bag else " | not recorded")
                        + (f" | foxglove ws://127.0.0.1:{fox_port}" if fox else ""))
