@@ -278,6 +278,25 @@ def descendants(root: int) -> list[int]:
     return out
 
 
+def own_dds_segment(pid: int, timeout_s: float = 30.0) -> Path:
+    """The Fast DDS shared-memory segment a node process owns (``/dev/shm/fastrtps_<id>``): the one whose lock file
+    (``_el``) it holds open (it maps its peers' too); a killed process leaves both files."""
+    import re
+    import time
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for fd in os.listdir(f"/proc/{pid}/fd"):
+            try:
+                target = os.readlink(f"/proc/{pid}/fd/{fd}")
+            except OSError:
+                continue
+            if re.fullmatch(r"/dev/shm/fastrtps_[0-9a-f]{16}_el", target):
+                return Path(target[:-3])
+        time.sleep(0.1)
+    raise AssertionError(f"no Fast DDS segment of its own in process {pid}")
+
+
 def command_line(pid: int) -> str:
     """The command line of ``pid`` ('' once it is gone)."""
     try:

@@ -22,8 +22,8 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ros2_tooling import tooling_env, tooling_venv  # noqa: E402  (tests/ros2_tooling.py)
-from rosenv import (claimed_domain, command_line, descendants, library_trajectory, ros_env,  # noqa: E402
-                    wait_for_clock)
+from rosenv import (claimed_domain, command_line, descendants, library_trajectory,  # noqa: E402
+                    own_dds_segment, ros_env, wait_for_clock)
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=130)]  # slow: started first (tests/conftest.py)
 REPO = Path(__file__).resolve().parents[2]
@@ -356,9 +356,7 @@ def test_a_node_that_dies_mid_run_stops_the_launch_with_exit_code_1(ws):
     try:
         wait_for_clock(domain, 1.0, timeout_s=120)
         (mixer,) = [pid for pid in descendants(p.pid) if "lib/bb2_ros/mixer" in command_line(pid)]
-        # its own Fast DDS segment: the one whose lock file it holds open (a killed process leaves both)
-        (segment,) = [Path(t[:-3]) for t in (os.readlink(f"/proc/{mixer}/fd/{fd}") for fd in os.listdir(
-            f"/proc/{mixer}/fd")) if re.fullmatch(r"/dev/shm/fastrtps_[0-9a-f]{16}_el", t)]
+        segment = own_dds_segment(mixer)  # (a killed process leaves it)
         os.kill(mixer, signal.SIGKILL)
         p.wait(60)   # the canyon's 475 s of mission would take minutes even flown whole
     finally:

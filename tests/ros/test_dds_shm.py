@@ -3,12 +3,9 @@ keeps a living one's (bb2-launch runs it after a run in which a node was killed,
 never take the files of a graph still running beside it)."""
 from __future__ import annotations
 
-import os
-import re
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -18,7 +15,7 @@ pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not installed")
 
 from bb2_tools.dds_shm import clean_stale_files, fastdds_tool  # noqa: E402
 
-from rosenv import claimed_domain, ros_env  # noqa: E402  (tests/rosenv.py)
+from rosenv import claimed_domain, own_dds_segment, ros_env  # noqa: E402  (tests/rosenv.py)
 
 PARTICIPANT = """
 import rclpy, sys, time
@@ -29,21 +26,6 @@ pub = node.create_publisher(String, "shm_probe", 10)
 print("up", flush=True)
 time.sleep(120)
 """
-
-
-def own_segment(pid: int) -> Path:
-    """The segment a participant owns: the one whose lock file (``_el``) it holds open."""
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline:
-        for fd in os.listdir(f"/proc/{pid}/fd"):
-            try:
-                target = os.readlink(f"/proc/{pid}/fd/{fd}")
-            except OSError:
-                continue
-            if re.fullmatch(r"/dev/shm/fastrtps_[0-9a-f]{16}_el", target):
-                return Path(target[:-3])
-        time.sleep(0.1)
-    raise AssertionError(f"no Fast DDS segment of its own in process {pid}")
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Fast DDS segments in /dev/shm: Linux only")
@@ -57,7 +39,7 @@ def test_a_killed_participants_files_go_and_a_living_ones_stay():
         for p in procs:
             assert p.stdout.readline().strip() == "up"
         killed, living = procs
-        seg_killed, seg_living = own_segment(killed.pid), own_segment(living.pid)
+        seg_killed, seg_living = own_dds_segment(killed.pid), own_dds_segment(living.pid)
         killed.send_signal(signal.SIGKILL)
         killed.wait(10)
         # a killed process leaves them: the clean removes them (alone; in the suite a clean of a test beside this
