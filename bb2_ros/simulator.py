@@ -3,7 +3,8 @@
 Parameters (``config/bb2_graph.yaml`` lists them all with their defaults).  Live (``ros2 param set`` takes
 effect at once, checked first): ``rate_hz`` (from the next deadline), the gate's timings ``lockstep_timeout_s``,
 ``lockstep_retry_s``, ``startup_timeout_s``, ``startup_settle_s``, ``command_timeout_s`` (the gate's frozen
-``GateTimings`` replaced), ``max_command_age_s``, ``duration_s``, ``exit_at_end``, ``warn_throttle_s``; every
+``GateTimings`` replaced), ``max_command_age_s``, ``duration_s``, ``exit_at_end``, ``stall_timeout_s``,
+``warn_throttle_s``; every
 other one is read-only (fixed at start-up; the set is refused):
 
 ``mission_file``       the mission YAML (as ``bb2-sim mission``): model, initial state, terrain, duration.
@@ -65,7 +66,12 @@ other one is read-only (fixed at start-up; the set is refused):
 ``max_command_age_s``  a command whose stamp is older than sim time minus this is rejected (stale).
 ``duration_s``         stop stepping at this sim time (< 0: the mission's duration, none = run on).
 ``exit_at_end``        exit 0 when the duration is reached (else stay up, status ``finished``); a diverged
-                       simulation then exits 1 (status ``diverged``, ``error``).
+                       simulation then exits 1 (status ``diverged``, ``error``), and so does a stalled one.
+``stall_timeout_s``    wall s of stepping on the failsafe without a break (every controller silent: in lockstep
+                       one step per ``lockstep_timeout_s``) after which the run stops as stalled (status
+                       ``stalled``, ``error`` saying what was silent; exit 1 with ``exit_at_end``) rather than
+                       crawl on neutral planes; 0 = never (default: ``bb2-launch`` watches this itself,
+                       ``--stall-timeout``; the launch files set it from their ``stall_timeout`` argument).
 ``trajectory_csv``     if set, every state ``t, x12`` (native, ``%.17g``) is written to this CSV.
 ``sea_file``           "" = the mission's sea and current; else a YAML/JSON file whose ``sea:`` and/or
                        ``current:`` blocks (the mission file's keys, :mod:`bb2_sim.environment`) replace the
@@ -116,8 +122,8 @@ counter in the status.  This node turns messages into the gate's inputs and its 
 
 Its status (``/bb2/status``, ``bb2/simulator``) says ``state``: ``starting`` until the first step is integrated
 (waiting for the controllers' first commands or the recorder; ``failsafe`` is then ``false``, nothing decided yet),
-``running``, ``finished`` at the end of the duration, ``diverged`` (with ``error``).  It goes out at once on each
-change of state or failsafe (the first as the node comes up) and every ``status_period_s`` between.
+``running``, ``finished`` at the end of the duration, ``diverged`` or ``stalled`` (with ``error``).  It goes out at
+once on each change of state or failsafe (the first as the node comes up) and every ``status_period_s`` between.
 """
 from __future__ import annotations
 
@@ -170,9 +176,11 @@ RT_GIVE_UP_S = 1.0  # real time: a SCHED_FIFO stepping thread late on every tick
 RECORDER_WAIT_WARN_S = 1.0  # a hold for the recorder longer than this (wall s) is said, once per hold
 
 
-def status_state(*, diverged: bool, finished: bool, steps: int) -> str:
-    """The status's ``state``: ``diverged``, ``finished``, ``starting`` (no step integrated yet) or ``running``."""
-    return "diverged" if diverged else "finished" if finished else "starting" if steps == 0 else "running"
+def status_state(*, diverged: bool, finished: bool, steps: int, stalled: bool = False) -> str:
+    """The status's ``state``: ``diverged``, ``stalled`` (stopped on the failsafe: ``stall_timeout_s``),
+    ``finished``, ``starting`` (no step integrated yet) or ``running``."""
+    return ("diverged" if diverged else "stalled" if stalled else "finished" if finished
+            else "starting" if steps == 0 else "running")
 
 
 class Simulator(Node):
@@ -252,6 +260,10 @@ class Simulator(Node):
             self._set_max_command_age, positive("max_command_age_s"))
         duration = L("duration_s", -1.0, "stop at this sim time (< 0: mission duration; none: run on); when set, "
                      "for the steps to come (a finished run stays finished)", self._set_duration, None)
+        self.stall_timeout_s = L(
+            "stall_timeout_s", 0.0, "wall s of stepping on the failsafe without a break after which the run stops "
+            "as stalled (status stalled; exit 1 with exit_at_end); 0 = never (bb2-launch watches it itself)",
+            lambda v: setattr(self, "stall_timeout_s", v), positive("stall_timeout_s", zero=True))
         self.exit_at_end = L("exit_at_end", False, "exit 0 when the duration is reached (set true on a finished "
                              "run: it exits now)", self._set_exit_at_end, None)
         self._path_flown = False  # /bb2/mission/progress reached 1 (end_at_progress)
@@ -395,6 +407,8 @@ class Simulator(Node):
 
         self.finished = False
         self.diverged = ""
+        self.stalled = ""  # why the run stopped on the failsafe (stall_timeout_s)
+        self._failsafe_since: float | None = None  # wall s of the first step of the failsafe now engaged
         # (t, speed) of the states stepped from over the last 2 s and a little more: a divergence at a speed where
         # the ROM's step is numerically unstable is said with the mission's ``substeps`` that would fly it
         self._recent_speeds: collections.deque[tuple[float, float]] = collections.deque(
@@ -449,7 +463,7 @@ class Simulator(Node):
 
     def _set_exit_at_end(self, value: bool) -> None:
         self.exit_at_end = value
-        if value and self.diverged:
+        if value and (self.diverged or self.stalled):
             self.done = True
         elif value and self.finished:
             self._end_when_recorded()
@@ -545,7 +559,7 @@ class Simulator(Node):
 
     # ------------------------------------------------------------------------------------ stepping
     def _stepping(self) -> bool:
-        return not (self.finished or self.diverged)
+        return not (self.finished or self.diverged or self.stalled)
 
     def _maybe_advance(self) -> None:
         if self._stepping():
@@ -579,7 +593,28 @@ class Simulator(Node):
             if not d.failsafe:
                 self.get_logger().info("failsafe released: valid commands again")
             self._publish_status()
+        if self._stalls(d):
+            return
         self._advance(d.planes_deg, d.rps)
+
+    def _stalls(self, d: StepDecision) -> bool:
+        """Whether this step on the failsafe is past ``stall_timeout_s`` of them without a break: the run then stops
+        as stalled (said once, status ``stalled``; exit 1 with ``exit_at_end``) instead of stepping."""
+        now = time.monotonic()
+        if not d.failsafe:
+            self._failsafe_since = None
+            return False
+        self._failsafe_since = self._failsafe_since or now
+        if not self.stall_timeout_s or now - self._failsafe_since < self.stall_timeout_s:
+            return False
+        self.stalled = (f"stalled: stepped on the failsafe for {now - self._failsafe_since:.0f} s of wall time "
+                        f"at t = {self.t:.3f} s ({d.reason}; stall_timeout_s {self.stall_timeout_s:g}): is every "
+                        f"controller running, on this ROS_DOMAIN_ID and namespace?")
+        self.exit_code = 1
+        self.get_logger().error(self.stalled)
+        self._publish_status()
+        self.done = self.exit_at_end
+        return True
 
     def _start(self) -> None:
         """Publish the first state once ``min_state_subscribers`` readers of /bb2/state_native are up (or
@@ -974,7 +1009,8 @@ class Simulator(Node):
         if dt > 0.2:
             self._rate_measured = (self.sim.n - self._steps_at_status) / dt
             self._steps_at_status, self._wall_at_status = self.sim.n, now
-        state = status_state(diverged=bool(self.diverged), finished=self.finished, steps=self.sim.n)
+        state = status_state(diverged=bool(self.diverged), finished=self.finished, steps=self.sim.n,
+                             stalled=bool(self.stalled))
         realtime = self.time_mode is TimeMode.REALTIME
         vals = {"mode": self.time_mode.value, "state": state, "sim_time_s": f"{self.t:.6f}", "step": str(self.sim.n),
                 "failsafe": str(self.gate.failsafe).lower(), "failsafe_reason": self.gate.failsafe_reason,
@@ -989,8 +1025,8 @@ class Simulator(Node):
                 "real_time_factor": f"{self._rate_measured * self.h:.3f}",
                 "duration_s": f"{self.duration_s:g}", "mission_file": self.mission_file,
                 "rom_substeps": str(self.sim.substeps)}
-        if self.diverged:
-            vals["error"] = self.diverged
+        if self.diverged or self.stalled:
+            vals["error"] = self.diverged or self.stalled
         vals.update({k: str(v) for k, v in self.gate.counters.items()})
         vals["command_gap_max_s"] = f"{self.gate.command_gap_max_s:.3f}"
         vals["overruns"] = str(self.overruns)
@@ -1014,10 +1050,11 @@ class Simulator(Node):
 
         vals = self.status_values()
         failsafe = self.gate.failsafe
-        level = (DiagnosticStatus.ERROR if self.diverged else DiagnosticStatus.WARN if failsafe
+        level = (DiagnosticStatus.ERROR if self.diverged or self.stalled else DiagnosticStatus.WARN if failsafe
                  else DiagnosticStatus.OK)
-        msg_text = (f"diverged: {self.diverged}" if self.diverged else f"FAILSAFE: {self.gate.failsafe_reason}"
-                    if failsafe else f"{vals['state']}, {self.time_mode.value}")
+        msg_text = (f"diverged: {self.diverged}" if self.diverged else self.stalled if self.stalled
+                    else f"FAILSAFE: {self.gate.failsafe_reason}" if failsafe
+                    else f"{vals['state']}, {self.time_mode.value}")
         st = DiagnosticStatus(level=level, name="bb2/simulator", message=msg_text,
                               hardware_id=self.get_fully_qualified_name(),  # /boat1/simulator in a fleet
                               values=[KeyValue(key=k, value=v) for k, v in vals.items()])

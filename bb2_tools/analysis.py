@@ -187,8 +187,10 @@ class RunEnd:
     """How the recorded run ended, by the mission runner's rules: ``reason`` an :class:`bb2_mission.EndReason`
     value -- ``finished`` (progress 1), ``duration``, ``grounded`` / ``broached`` (the first tick that breaks the
     mission's limits, :func:`bb2_mission.limit_event`; the runner stops there, the graph flies on),
-    ``diverged`` (the simulator said so, or a state is not finite) -- at ``t_s`` (s; None: unknown), and for a
-    failure the ``message`` the runner gives (``grounded at t = 12.35 s, CG at ...: lowest hull point ...``).
+    ``diverged`` (the simulator said so, or a state is not finite), and in a graph's bag alone ``stalled`` (its
+    simulator stopped on the failsafe after ``stall_timeout_s``: no controller answered) -- at ``t_s`` (s; None:
+    unknown), and for a failure the ``message`` the runner gives (``grounded at t = 12.35 s, CG at ...: lowest hull
+    point ...``).
     Limits are checked only when the mission is known."""
 
     reason: str
@@ -552,9 +554,13 @@ def _run_end(run: BagRun, tick: np.ndarray, mission: Any, probes: Any, cl: np.nd
     from bb2_mission import limit_event
     from bb2_mission.components import broaching_limit
 
-    if run.status_value("state", "bb2/simulator") == "diverged":  # at the last state it stepped from (the runner's)
+    sim_state = run.status_value("state", "bb2/simulator")
+    if sim_state == "diverged":  # at the last state it stepped from (the runner's)
         return RunEnd("diverged", float(run.t[-1]) if len(run.t) else None,
                       "diverged: " + (run.status_value("error", "bb2/simulator") or "(no detail)"))
+    if sim_state == "stalled":  # the simulator stopped on its failsafe (its stall_timeout_s): no controller answered
+        return RunEnd("stalled", float(run.t[-1]) if len(run.t) else None,
+                      run.status_value("error", "bb2/simulator") or "stalled: the simulator stopped on its failsafe")
     bad = np.flatnonzero(~np.isfinite(run.x).all(axis=1))
     if len(bad):
         t = float(run.t[bad[0]])

@@ -181,8 +181,8 @@ class GraphMonitor:
                              if vals.get("failsafe") == "true" and state == "running" else None)
             if state in END_WORDS:
                 self.status_end = True
-            elif state == "diverged":
-                self.sim_error = vals.get("error") or st.message or "diverged"
+            elif state in ("diverged", "stalled"):
+                self.sim_error = vals.get("error") or st.message or state
 
     def rtf(self, *, overall: bool = False) -> float | None:
         """Sim seconds per wall second over the last window, or (``overall``) while stepping: from the

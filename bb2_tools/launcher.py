@@ -509,6 +509,18 @@ def check_without(value: str | Sequence[str], option: str = "without") -> tuple[
     return tuple(sorted(names, key=REPLACEABLE.index))
 
 
+def check_stall_timeout(value: str | float, option: str = "--stall-timeout") -> float:
+    """The stall timeout of ``value`` (wall s, a number >= 0 and finite; 0 = no stall check): :class:`LaunchError`
+    naming ``option`` otherwise."""
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise LaunchError(f"{option} must be a number of wall seconds (0 = never), got {value!r}") from None
+    if not (out >= 0 and math.isfinite(out)):
+        raise LaunchError(f"{option} must be >= 0 and finite, got {value}")
+    return out
+
+
 def process_name(group: Sequence[str]) -> str:
     """The name of the process that runs ``group`` (its log file, its restart policy, its reports): the node's
     own for a node alone, ``container`` for every composable node, else the nodes joined by ``+``."""
@@ -789,8 +801,8 @@ def repair_bags(bags: Sequence[Path]) -> list[str]:
 FROZEN_CHECK_S = 0.5
 """How often (wall s) run_graph looks for stopped node processes (:meth:`Supervisor.stopped`)."""
 
-DEFAULT_STALL_TIMEOUT_S = 60.0
 FAILSAFE_STALL = "stalled: the simulator has stepped on its failsafe"
+DEFAULT_STALL_TIMEOUT_S = 60.0
 """Wall seconds without the sim time advancing after which ``bb2-launch`` stops the graph as stalled (the
 simulator's own lockstep timeout steps on held commands after 0.5 s by default, so a graph that lives never
 stands still this long), or stepping on the simulator's failsafe (its status says FAILSAFE: no controller answers;
@@ -891,8 +903,7 @@ def check_run_options(args: argparse.Namespace) -> None:
         raise LaunchError(f"--domain-id must be in 0..232, got {args.domain_id}")
     if args.timeout is not None and not (args.timeout > 0 and math.isfinite(args.timeout)):
         raise LaunchError(f"--timeout must be > 0 and finite, got {args.timeout}")
-    if not (args.stall_timeout >= 0 and math.isfinite(args.stall_timeout)):
-        raise LaunchError(f"--stall-timeout must be >= 0 and finite, got {args.stall_timeout}")
+    check_stall_timeout(args.stall_timeout)
     if not (args.status_period > 0 and math.isfinite(args.status_period)):
         raise LaunchError(f"--status-period must be > 0 and finite, got {args.status_period}")
     if not (args.ready_timeout > 0 and math.isfinite(args.ready_timeout)):

@@ -2,7 +2,7 @@
 """The bench monitor of the HIL example: watches the simulator over the contract and judges the flight.
 
 Subscribes to ``/bb2/odom`` (the flown trajectory) and ``/bb2/status`` (the simulator's diagnostics:
-mode, failsafe, counters), and stops when the simulator reports ``state`` ``finished`` or ``diverged``
+mode, failsafe, counters), and stops when the simulator reports ``state`` ``finished``, ``diverged`` or ``stalled``
 (or after ``--timeout`` wall seconds).  It then prints, and writes as JSON with ``--summary``:
 
 * the path errors of the flown odometry from the mission path (closest point; horizontal > 0 left of
@@ -114,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     odom: list[tuple[float, np.ndarray]] = []
     statuses: list[dict[str, str]] = []
     stop = threading.Event()
-    end_sim_s: list[float] = []   # the sim time of the simulator's final status (finished / diverged)
+    end_sim_s: list[float] = []   # the sim time of the simulator's final status (finished / diverged / stalled)
 
     def on_odom(msg) -> None:
         s = cv.odometry_to_state(msg)
@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
             if st.name == "bb2/simulator":
                 vals = {kv.key: kv.value for kv in st.values}
                 statuses.append(vals)
-                if vals.get("state") in ("finished", "diverged"):
+                if vals.get("state") in ("finished", "diverged", "stalled"):
                     try:
                         end_sim_s.append(float(vals.get("sim_time_s", "nan")))
                     except ValueError:

@@ -139,7 +139,7 @@ def bench(tmp_path):
             p.send_signal(signal.SIGINT)
     codes = [p.wait(10) for p in procs]
     b.close()
-    assert codes == [0] * len(procs)
+    assert codes == [getattr(p, "expected_rc", 0) for p in procs]  # (a test that expects an error sets it)
 
 
 def test_realtime_rejects_clamps_and_fails_safe(bench):
@@ -320,6 +320,44 @@ def test_lockstep_timeout_holds_commands_and_resumes(bench):
     b.wait(lambda: b.last_status().get("failsafe") == "false", 5, "failsafe released", sim)
     assert len(answered) > 40  # much faster than one step per timeout
     assert int(b.last_status()["lockstep_timeouts"]) <= n0 + 2
+
+
+@pytest.mark.parametrize("mode", ["lockstep", "realtime"])
+def test_stall_timeout_stops_a_run_on_the_failsafe_and_a_release_starts_its_count_again(bench, mode):
+    """Without a controller the simulator stepped on neutral planes for as long as the mission lasts (in lockstep
+    one step per lockstep_timeout_s: hours); with ``stall_timeout_s`` it stops the run as stalled after that many
+    wall seconds on the failsafe without a break (status ``stalled`` at ERROR, the error naming the timeout; exit 1
+    with exit_at_end).  A release counts: valid commands for longer than the timeout, then silence, and the
+    simulator still steps on the failsafe for the whole timeout before it stops."""
+    b, start = bench
+    stall_s = 1.0
+    timing = (dict(startup_timeout_s=0.5, lockstep_timeout_s=0.1) if mode == "lockstep"
+              else dict(rate_hz=40, command_timeout_s=0.2))
+    sim = start(time_mode=mode, stall_timeout_s=stall_s, exit_at_end=True, status_period_s=0.2, **timing)
+    sim.expected_rc = 1
+    b.wait(lambda: b.last_status().get("failsafe") == "true" and b.t() > 0, 30, "stepping on the failsafe", sim)
+    ok = np.radians([1.0, 1.0, -1.0, -1.0, 0.0])
+    answered_until = time.monotonic() + 2 * stall_s  # past the timeout: stopped now if the count went on
+    while time.monotonic() < answered_until:
+        b.send(planes_rad=ok, omega=2 * math.pi, t=b.t())
+        time.sleep(0.005 if mode == "lockstep" else 0.02)
+        assert sim.poll() is None, sim.communicate()[0]
+    last_answer = time.monotonic()
+    t_silent = b.t()
+    try:
+        out, _ = sim.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"the simulator did not stop on its failsafe; last status {b.last_status()}")
+    ended = time.monotonic()
+    assert sim.returncode == 1, out
+    assert ended - last_answer >= stall_s, (ended - last_answer, out)  # the whole timeout after the release
+    b.wait(lambda: b.last_status().get("state") == "stalled", 5, "the stalled status")
+    st = b.last_status()
+    assert st["failsafe"] == "true" and f"stall_timeout_s {stall_s:g}" in st["error"], st
+    assert st["error"].startswith("stalled: stepped on the failsafe for "), st
+    assert b.levels[-1] == 2, b.levels[-3:]  # DiagnosticStatus.ERROR
+    assert float(st["sim_time_s"]) > t_silent  # it did step on the failsafe after the silence began
+    assert out.count("stalled: stepped on the failsafe") == 1, out  # said once
 
 
 def test_realtime_thread_gives_up_fifo_when_it_overruns_every_step(bench):

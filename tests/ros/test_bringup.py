@@ -168,6 +168,29 @@ def test_without_leaves_a_node_out_for_a_users_own_node_in_its_place(ws):
         assert np.max(np.abs(np.array(got[t][1:13]) - x)) <= 1e-9, t
 
 
+def test_without_and_no_node_of_the_users_the_run_stops_as_stalled_and_the_launch_fails(ws):
+    """``without:=mixer`` and no mixer of the user's (not started, or on another domain): the simulator stepped on
+    its failsafe, one step per lockstep_timeout_s, until Ctrl-C (a 500-s mission: hours).  After ``stall_timeout``
+    wall seconds on it the simulator now stops the run as stalled: ``ros2 launch`` exits 1, the bag is finished and
+    its analysis says the run stalled, and why."""
+    from bb2_tools.analysis import analyze
+    from bb2_tools.bag_run import read_bag
+
+    env, install, tmp = ws
+    (tmp / "quick_failsafe.yaml").write_text("/**:\n  ros__parameters:\n    startup_timeout_s: 1.0\n"
+                                             "    lockstep_timeout_s: 0.2\n")
+    domain = claimed_domain()
+    p = launch(ws, domain, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "without:=mixer",
+               "stall_timeout:=2", f"params_file:={tmp / 'quick_failsafe.yaml'}", f"bag:={tmp / 'stalled'}")
+    out = finish(p, 120)
+    assert p.returncode == 1, out[-3000:]
+    assert "stalled: stepped on the failsafe for 2 s of wall time" in out and "stall_timeout_s 2)" in out, out[-3000:]
+    assert "the simulator exited with code 1: the run failed" in out, out[-3000:]
+    end = analyze(read_bag(tmp / "stalled")).figures.end
+    assert end.reason == "stalled" and "stall_timeout_s 2" in end.message, end
+    assert 0 < end.t_s < 2.5, end  # it stopped before the mission's end
+
+
 def test_ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished(ws):
     env, install, tmp = ws
     domain = claimed_domain()
@@ -297,6 +320,10 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("bb2_graph.launch.py", ["without:=mixr"], "launch argument without: unknown node 'mixr' (did you mean "
              "'mixer'?); nodes that may be left out: planner, path_following, l1_autopilot, mixer"),
             ("bb2_graph.launch.py", ["without:=simulator"], "the simulator is the boat itself"),
+            ("bb2_graph.launch.py", ["stall_timeout:=-1"], "launch argument stall_timeout must be >= 0 and finite, "
+             "got -1"),
+            ("fleet.launch.py", ["stall_timeout:=1min"], "launch argument stall_timeout must be a number of wall "
+             "seconds (0 = never), got '1min'"),
             ("fleet.launch.py", ["without:=mixer,mixer"], "launch argument without: node 'mixer' is named twice"),
             ("bb2_graph.launch.py", ["namespace:=9boat"], "launch argument namespace must be a ROS 2 namespace "
              "(segments of letters, digits and '_', each starting with a letter, separated by '/'), got '9boat'"),

@@ -20,6 +20,9 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
                nodes of your own in their place on the contract's topics (your autopilot: without:=l1_autopilot,mixer;
                run it with ``ros2 run`` on the same ROS_DOMAIN_ID). In lockstep the simulator waits for the answer to
                each step (the first up to startup_timeout_s, 30 s), in real time for the first command.
+  stall_timeout  wall s (default 60; 0 = never) of stepping on the failsafe without a break -- no controller
+               answers: your node not started, or on another domain -- after which the simulator stops the run as
+               stalled and the launch fails (bb2-launch --stall-timeout), rather than crawl on neutral planes.
 
 It starts what ``bb2-launch`` starts — simulator, planner, path_following, l1_autopilot, mixer and (record) the
 recorder, each its own process, the recorder and the planner at nice +10 — with the same parameters: the
@@ -60,7 +63,8 @@ from bb2_msgs_py.contract import RECORDER_ACK_WINDOW, check_namespace
 from bb2_sim.outputs import OutputError, claim_run_dir
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
 from bb2_tools.dds_shm import clean_after_kill
-from bb2_tools.launcher import check_foxglove_port, check_mission, check_params_file, check_without
+from bb2_tools.launcher import (DEFAULT_STALL_TIMEOUT_S, check_foxglove_port, check_mission, check_params_file,
+                                check_stall_timeout, check_without)
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
@@ -78,6 +82,8 @@ ARGUMENTS = {
     "foxglove_port": ("8765", "the Foxglove WebSocket port"),
     "without": ("", "'' or NODE[,NODE...] of planner, path_following, l1_autopilot, mixer: left out, for nodes of "
                     "your own in their place (your autopilot: without:=l1_autopilot,mixer)"),
+    "stall_timeout": (f"{DEFAULT_STALL_TIMEOUT_S:g}", "wall s of stepping on the failsafe (no controller answers) "
+                      "after which the run stops as stalled and the launch fails; 0 = never"),
 }
 
 
@@ -160,13 +166,15 @@ def container_arguments(nodes: list[tuple[str, dict]], params: list[str], ns: st
 
 def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, namespace: str, params_file: str,
          stop_launch: bool = True, compose: bool = False, foxglove_port: int | None = None,
-         own_recorder: bool = True, without: tuple[str, ...] = ()) -> list:
+         own_recorder: bool = True, without: tuple[str, ...] = (),
+         stall_timeout_s: float = DEFAULT_STALL_TIMEOUT_S) -> list:
     """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch,
     without it the simulator's exit stops this boat's other nodes;
     ``compose``: every node but the recorder in one container process; ``foxglove_port``: the live Foxglove
     server on that port; ``record`` without ``own_recorder``: recorded by a recorder of the caller's, a fleet's
     (:func:`fleet_recorder`), which the simulator waits for as for its own; ``without``: nodes not started, a
-    user's own in their place, :func:`bb2_tools.launcher.check_without`)."""
+    user's own in their place, :func:`bb2_tools.launcher.check_without`; ``stall_timeout_s``: the simulator stops
+    the run as stalled after stepping on its failsafe this long, 0 = never)."""
     check_time_mode(time_mode)
     ns = namespace.strip("/")
     common = {"mission_file": str(mission)}
@@ -192,6 +200,7 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
                             background=True))
         actions.append(watch(actions[-1], who("foxglove_bridge"), lambda: bool(run_over), essential=False))
     sim_values = {"use_sim_time": False, "time_mode": time_mode, "exit_at_end": True, "end_at_progress": True,
+                  "stall_timeout_s": float(stall_timeout_s),
                   "wait_for_readers": record, "wait_for_commands": time_mode == "realtime",
                   "recorder_ack_window": RECORDER_ACK_WINDOW if record and time_mode == "lockstep" else 0}
     controllers = [(exe, bg) for exe, bg in (("planner", True), ("path_following", False), ("l1_autopilot", False),
@@ -320,6 +329,7 @@ def _graph(context):
     params_file = checked_params_file(a["params_file"])
     record = flag(a["record"], "record")
     without = check_without(a["without"], "launch argument without")
+    stall = check_stall_timeout(a["stall_timeout"], "launch argument stall_timeout")
     fox = flag(a["foxglove"], "foxglove")
     try:
         fox_port = int(a["foxglove_port"]) if fox else None
@@ -336,7 +346,8 @@ def _graph(context):
     bag = claim_bag(a["bag"], a["bag_dir"], stem) if record else None
     with released_on_error(bag):
         acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=ns,
-                    params_file=params_file, compose=compose, foxglove_port=fox_port, without=without)
+                    params_file=params_file, compose=compose, foxglove_port=fox_port, without=without,
+                    stall_timeout_s=stall)
     said = LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
                        + (" | composed" if compose else "")
                        + (f" | namespace /{ns}" if ns else "")

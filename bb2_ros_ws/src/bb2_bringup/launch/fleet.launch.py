@@ -16,6 +16,8 @@ with its own controllers (deterministic: a boat's run equals the same mission fl
   params_file  the graph's params file
   without      '' or NODE[,NODE...]: those nodes of every boat are not started, yours answer in their place in
                each boat's namespace (as in bb2_graph.launch.py)
+  stall_timeout  wall s (default 60; 0 = never) of stepping on the failsafe after which a boat's simulator stops
+               its run as stalled (an error: the launch fails once every boat has ended; bb2_graph.launch.py)
 
 The launch ends when every boat's simulator has ended its run, with exit code 1 when any boat's simulator exited
 with an error (the other boats fly on to their end); a boat's other nodes stop when its simulator ends; any other
@@ -53,6 +55,7 @@ ARGUMENTS = {
     "bag_dir": ("bags", "where the fleet's bags go"),
     "params_file": (graph.ARGUMENTS["params_file"][0], "the graph's ROS 2 params file"),
     "without": ("", "'' or NODE[,NODE...]: every boat's nodes left out, yours in their place (bb2_graph.launch.py)"),
+    "stall_timeout": graph.ARGUMENTS["stall_timeout"],
 }
 
 
@@ -74,6 +77,7 @@ def _fleet(context):
     graph.check_time_mode(a["time_mode"])
     params_file = graph.checked_params_file(a["params_file"])
     without = graph.check_without(a["without"], "launch argument without")
+    stall = graph.check_stall_timeout(a["stall_timeout"], "launch argument stall_timeout")
     # the bag directory, claimed as bb2-launch claims its run directory (fleet_<date>, _2 ... when taken)
     root = graph.claim_bag("", a["bag_dir"], f"{name}_{time.strftime('%Y%m%d_%H%M%S')}") if record else None
     # not recorded, a fleet file's missions go to a folder of their own, removed as the launch ends
@@ -92,7 +96,8 @@ def _fleet(context):
                         graph.watch(recorder, "the fleet's recorder", lambda: len(ended) == len(sims))]
         for (ns, mission), (_ns, warning) in zip(checked, warnings):
             acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=None, namespace=ns,
-                              params_file=params_file, stop_launch=False, own_recorder=False, without=without)
+                              params_file=params_file, stop_launch=False, own_recorder=False, without=without,
+                              stall_timeout_s=stall)
             sims.append(acts[-1])
             actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}"),
                         *([LogInfo(msg=f"[bb2_bringup] warning: /{ns}: {warning}")] if warning else []), *acts]
