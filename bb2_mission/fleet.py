@@ -2,7 +2,7 @@
 
 Fleet file (YAML; ``boats`` required, unknown keys are an error)::
 
-    name: canyon_pair                  # default: file stem
+    name: canyon_pair                  # default: file stem; one file name (it names the bag directory)
     description: free text
     boats:                             # namespace -> its mission, in launch order
       boat1: canyon                    #   a mission: a shipped name (missions/) or a file (relative to this file)
@@ -28,6 +28,7 @@ import yaml
 
 from bb2_mission.schema import MISSIONS_DIR, Mission, MissionError, load_mission
 from bb2_sim.names import unknown_keys_hint
+from bb2_sim.outputs import plain_name
 from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["FleetBoat", "Fleet", "load_fleet", "is_fleet_file"]
@@ -146,8 +147,11 @@ def load_fleet(file: str | Path) -> Fleet:
         except MissionError as exc:
             raise MissionError(f"{where}: {exc}") from None
         boats[name] = FleetBoat(name, base, changes, mission)
-    name = doc.get("name", f.stem)
-    return Fleet(str(name), str(doc.get("description", "")), f.resolve(), boats)
+    try:
+        name = plain_name(doc.get("name", f.stem), f"{f}: name")  # the fleet's bag directory is named for it
+    except ValueError as exc:
+        raise MissionError(str(exc)) from None
+    return Fleet(name, str(doc.get("description", "")), f.resolve(), boats)
 
 
 def _load_boat(name: str, base: Path, changes: dict[str, Any], fleet_file: Path) -> Mission:

@@ -2,7 +2,7 @@
 
 Mission file (YAML; every key optional except ``path``; unknown keys are an error)::
 
-    name: canyon                       # default: file stem
+    name: canyon                       # default: file stem; one file name (it names the run's files)
     description: free text
     extends: other.yaml                # start from another mission file (nested mappings merge): beside
                                        # this file, else the working directory, else a shipped name (canyon)
@@ -75,6 +75,7 @@ from bb2_sim.environment import Environment, current_from_mapping, sea_from_mapp
 from bb2_sim.sea import SeaInputError
 from bb2_sim.sensors.config import SensorConfigError, SensorSpec, navigation_from_value, sensors_from_mapping
 from bb2_sim.names import unknown_keys_hint
+from bb2_sim.outputs import plain_name
 from bb2_sim.yaml_files import load as load_yaml
 
 __all__ = ["MissionError", "InitialState", "Limits", "Mission", "MISSIONS_DIR", "RPS_PATH_MEAN_SPEED", "FORMAT",
@@ -401,7 +402,11 @@ def mission_from_dict(doc: Mapping[str, Any], *, base_dir: Path | None = None, n
                 raise MissionError(f"path below the terrain: {e}") from None
             except TerrainOutOfBoundsError as e:
                 raise MissionError(f"path leaves the terrain grid: {e}") from None
-        m = Mission(name=str(doc.get("name", name)), path=path, path_source=path_source, stack=stack,
+        try:
+            run_name = plain_name(doc.get("name", name), "name")
+        except ValueError as exc:
+            raise MissionError(str(exc)) from None
+        m = Mission(name=run_name, path=path, path_source=path_source, stack=stack,
                     adaptation=adaptation, terrain=terrain, terrain_source=terrain_source, initial=initial,
                     rps=rps, duration_s=duration, duration_margin=margin, sea_state=sea_state,
                     profile=str(profile), hull=hull, limits=limits, description=str(doc.get("description", "")),

@@ -16,6 +16,8 @@ The helpers:
 * :func:`claim_run_dir` — a run directory of one's own: ``os.mkdir`` is atomic, so two processes started in
   the same second never share one (the second gets ``<stem>_2``, then ``_3``, ...); an explicit directory
   that exists empty is claimed by creating its claim file with ``O_EXCL``.
+* :func:`plain_name` — a name from an input file that becomes a file or directory name (a mission's, a fleet's, a
+  campaign's): one name, never a path (``../../x`` would write outside the folder meant), and a text.
 * :func:`run_cli` — run a CLI body, turning ``OSError``/``UnicodeError``/``MemoryError`` into one line and
   exit 2 and ``KeyboardInterrupt`` into exit 130.
 
@@ -33,7 +35,7 @@ from pathlib import Path
 from typing import Callable
 
 __all__ = ["OutputError", "EXIT_OK", "EXIT_FAILED", "EXIT_INPUT", "EXIT_INTERRUPTED", "CLAIM_FILE",
-           "check_output_file", "check_writable_dir", "claim_run_dir", "os_error_line", "run_cli"]
+           "check_output_file", "check_writable_dir", "claim_run_dir", "os_error_line", "plain_name", "run_cli"]
 
 EXIT_OK = 0
 EXIT_FAILED = 1        #: the simulation diverged / the mission failed
@@ -160,6 +162,28 @@ def _claim_existing_empty(d: Path) -> bool:
     return True
 
 
+MAX_NAME_CHARS = 200
+"""The longest :func:`plain_name` (a file name may have 255 bytes; a date and ``_N`` are appended to it)."""
+
+
+def plain_name(value: object, what: str = "name") -> str:
+    """``value`` as a name that becomes a file or directory name: a text (an integer, as YAML reads ``name: 2024``,
+    is taken as its digits) of one file name -- not empty, no ``/`` or ``\\``, not ``.`` or ``..``, no control
+    characters, at most :data:`MAX_NAME_CHARS` characters.  :class:`ValueError` naming ``what`` otherwise (a
+    float, a boolean or a list: YAML read ``1e3``, ``yes`` or ``[a]`` as one, so quote it)."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return str(value)
+    if not isinstance(value, str):
+        quote = (f" (YAML read a {type(value).__name__}: put the name in quotes)" if isinstance(value, (float, bool))
+                 else "")
+        raise ValueError(f"{what} must be a text, got {value!r}{quote}")
+    if (not value.strip() or value in (".", "..") or any(c in "/\\" or ord(c) < 32 or ord(c) == 127 for c in value)
+            or len(value) > MAX_NAME_CHARS):
+        raise ValueError(f"{what} must be a plain name (one file name: not empty, no '/' or '\\', not '.' or '..', "
+                         f"no control characters, at most {MAX_NAME_CHARS} characters), got {value!r}")
+    return value
+
+
 def claim_run_dir(parent: str | os.PathLike | None = None, stem: str | None = None, *,
                   path: str | os.PathLike | None = None, max_tries: int = 1000,
                   check: bool = True) -> Path:
@@ -188,6 +212,7 @@ def claim_run_dir(parent: str | os.PathLike | None = None, stem: str | None = No
         return d
     if parent is None or not stem:
         raise ValueError("claim_run_dir needs path, or parent and stem")
+    plain_name(stem, "claim_run_dir: stem")  # a name in parent, never a path out of it
     base = Path(parent)
     if check:
         check_writable_dir(base)

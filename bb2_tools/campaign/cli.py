@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from bb2_sim.cli import int_at_least, positive_int
+from bb2_sim.outputs import plain_name
 from bb2_tools.campaign.errors import SpecError
 
 PROG = "bb2-campaign"
@@ -108,7 +109,7 @@ def _run_only(spec: Any, index: int, out: Path) -> int:
         if spec.target == "mission":
             from bb2_mission import MISSION_COLUMNS
 
-            traj_file = out / f"{spec.document(index).get('name', spec.name)}.csv"
+            traj_file = out / f"{plain_name(spec.document(index).get('name', spec.name), 'the run mission name')}.csv"
             writer = CsvWriter(traj_file, MISSION_COLUMNS)
             on_row = writer.write
         else:
@@ -117,6 +118,8 @@ def _run_only(spec: Any, index: int, out: Path) -> int:
             on_row = writer.write
     except OSError as e:
         return _fail(f"cannot write into {out}: {e}")
+    except ValueError as e:  # a varied name that is no plain name
+        return _fail(f"run {index}: {e}")
     try:
         row, result = run_one(spec, index, on_row=on_row)
     finally:

@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 
 from bb2_sim.names import unknown_keys_hint
+from bb2_sim.outputs import plain_name
 from bb2_sim.yaml_files import load as load_yaml
 from bb2_tools.campaign.errors import SpecError
 
@@ -408,8 +409,11 @@ def parse_spec(doc: Any, *, spec_file: str | Path | None = None) -> CampaignSpec
         raise SpecError(f"collect: {clash} clash with varied keys or reserved columns")
     if len(set(collect)) != len(collect):
         raise SpecError(f"collect: duplicate names in {list(collect)}")
-    name = doc.get("name") or (Path(spec_file).stem if spec_file else "campaign")
-    spec = CampaignSpec(name=str(name), target=target, base=base, base_dir=base_dir, source=source,
+    try:  # (the default --out folder is named for it)
+        name = plain_name(doc.get("name") or (Path(spec_file).stem if spec_file else "campaign"), "name")
+    except ValueError as exc:
+        raise SpecError(str(exc)) from None
+    spec = CampaignSpec(name=name, target=target, base=base, base_dir=base_dir, source=source,
                         maneuver=man_name, seed=seed, samples=samples, vary=vary, collect=tuple(collect),
                         sampling=sampling, seed_key=seed_key, description=str(doc.get("description", "")),
                         spec_file=str(Path(spec_file).resolve()) if spec_file else None)

@@ -48,6 +48,9 @@ def test_a_boat_of_its_own_names_files_relative_to_the_fleet_file(tmp_path):
     ("boats: {b1: {mission: straight, extends: canyon}}\n", r"boat 'b1': give the mission it starts from as 'mission'"),
     ("boats: [straight]\n", r"'boats' must map"),
     ("- a\n", r"a fleet file is a mapping"),
+    # the fleet's bag directory is named for it: ../ wrote the bag outside --bag-dir
+    ("name: ../../escape\nboats: {b1: straight}\n", r"bad.yaml: name must be a plain name .*got '../../escape'"),
+    ("name: 1e3\nboats: {b1: straight}\n", r"name must be a text, got 1000.0 \(YAML read a float: put the name in"),
 ])
 def test_a_bad_fleet_file_is_refused_naming_the_boat(tmp_path, text, why):
     f = tmp_path / "bad.yaml"

@@ -170,6 +170,10 @@ def test_broaching_stops_and_reports(model):
     ({"path": "circle_r400", "initial": {"heading": 0}}, "unknown key(s) in initial"),
     # the likely key named, as a stack's or a params file's typo is
     ({"path": "circle_r400", "duraton_s": 60}, "unknown key(s) ['duraton_s'] (did you mean 'duration_s'?); allowed:"),
+    # a mission's name becomes a file's (bb2-sim mission --out, a campaign run's CSV): a text of one file name
+    ({"path": "circle_r400", "name": "../up"}, "name must be a plain name (one file name: not empty, no '/'"),
+    ({"path": "circle_r400", "name": ["a"]}, "name must be a text, got ['a']"),
+    ({"path": "circle_r400", "name": True}, "name must be a text, got True (YAML read a bool: put the name in quotes)"),
     ({"path": "circle_r400", "initial": {"speed_kn": 3}}, "['speed_kn'] (did you mean 'speed_mps'?)"),
     ({"path": "circle_r400", "limits": {"max_cg_z": -16.0}}, "['max_cg_z'] (did you mean 'max_cg_z_m'?)"),
     ({"path": "circle_r400", "sea": {"spectrum": "jonswap", "hs": 2, "tpp": 8}}, "['tpp'] (did you mean 'tp'?)"),

@@ -289,6 +289,10 @@ BAD = [
     ({"mission": "circle", "vary": {"bogus_field": [1, 2]}}, "vary.bogus_field"),
     ({"mission": "circle", "vary": {"initial.offset_m": {"choice": [[0, 0, 0], [1, 2]]}}}, "initial.offset_m"),
     ({"mission": "circle", "vary": {"sea_state": [0, 42]}}, "vary.sea_state"),
+    # names that become file names: the --out folder, a run's CSV (../ would write outside the folder meant)
+    ({"mission": "circle", "name": "../../elsewhere"}, "name must be a plain name"),
+    ({"mission": "circle", "vary": {"name": ["a", "../b"]}}, "vary.name = '../b': name must be a plain name"),
+    ({"mission": "circle", "vary": {"name": [1e3]}}, "vary.name = 1000.0: name must be a text"),
     ({"mission": "circle", "collect": ["rms_vertical", "rms_sideways"]}, "collect"),
     ({"mission": "circle", "vary": {"stack.guidance.d_mm": [100, 200]}}, "vary.stack.guidance.d_mm"),  # it flew d_m
     ({"maneuver": {"name": "barrel-roll"}}, "maneuver.name"),

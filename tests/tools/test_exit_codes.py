@@ -13,6 +13,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import re
 import threading
 import time
 from pathlib import Path
@@ -94,6 +95,24 @@ def test_run_dir_claims_never_collide_whatever_the_timing(tmp_path):
     assert len(set(got)) == 16
     assert sorted(p.name for p in tmp_path.iterdir())[0] == "canyon_20261201_120000"
     assert all((d / O.CLAIM_FILE).is_file() for d in got)
+
+
+@pytest.mark.parametrize("value, said", [
+    ("../escape", "must be a plain name"), ("a/b", "must be a plain name"), ("..", "must be a plain name"),
+    ("", "must be a plain name"), ("tab\there", "must be a plain name"), ("x" * 201, "at most 200 characters"),
+    (1000.0, "must be a text, got 1000.0 (YAML read a float: put the name in quotes)"), (None, "must be a text"),
+    (["a"], "must be a text, got ['a']")])
+def test_a_name_that_becomes_a_file_name_is_one_plain_name(tmp_path, value, said):
+    """A mission's, a fleet's or a campaign's name names its files: ``../escape`` wrote a fleet's bag outside
+    --bag-dir; a float or a boolean (YAML's reading of ``1e3``, ``yes``) is refused, an integer taken as its digits,
+    and claim_run_dir makes no directory of a stem that is a path."""
+    with pytest.raises(ValueError, match=re.escape(said)):
+        O.plain_name(value, "name")
+    if isinstance(value, str):
+        with pytest.raises(ValueError, match="claim_run_dir: stem"):
+            O.claim_run_dir(tmp_path / "runs", value or "x/")
+    assert O.plain_name(2024, "name") == "2024" and O.plain_name("canyon pair-1.2", "name") == "canyon pair-1.2"
+    assert not (tmp_path / "escape").exists()
 
 
 def test_claim_of_an_explicit_dir(tmp_path):
