@@ -22,7 +22,8 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
                each step (the first up to startup_timeout_s, 30 s), in real time for the first command.
   stall_timeout  wall s (default 60; 0 = never) of stepping on the failsafe without a break -- no controller
                answers: your node not started, or on another domain -- after which the simulator stops the run as
-               stalled and the launch fails (bb2-launch --stall-timeout), rather than crawl on neutral planes.
+               stalled and the launch fails (bb2-launch --stall-timeout), rather than crawl on neutral planes;
+               it sets the simulator's stall_timeout_s, over a params file's (as time_mode sets time_mode).
 
 It starts what ``bb2-launch`` starts — simulator, planner, path_following, l1_autopilot, mixer and (record) the
 recorder, each its own process, the recorder and the planner at nice +10 — with the same parameters: the
