@@ -188,10 +188,10 @@ class RunEnd:
     value -- ``finished`` (progress 1), ``duration``, ``grounded`` / ``broached`` (the first tick that breaks the
     mission's limits, :func:`bb2_mission.limit_event`; the runner stops there, the graph flies on),
     ``diverged`` (the simulator said so, or a state is not finite), and in a graph's bag alone ``stalled`` (its
-    simulator stopped on the failsafe after ``stall_timeout_s``: no controller answered) -- at ``t_s`` (s; None:
-    unknown), and for a failure the ``message`` the runner gives (``grounded at t = 12.35 s, CG at ...: lowest hull
-    point ...``).
-    Limits are checked only when the mission is known."""
+    simulator stopped on the failsafe after ``stall_timeout_s``: no controller answered) or ``stopped`` (the
+    recording ends before the mission's duration, the simulator never finished: the graph was stopped) -- at
+    ``t_s`` (s; None: unknown), and for a failure the ``message`` the runner gives (``grounded at t = 12.35 s, CG
+    at ...: lowest hull point ...``).  Limits are checked only when the mission is known."""
 
     reason: str
     t_s: float | None = None
@@ -583,7 +583,32 @@ def _run_end(run: BagRun, tick: np.ndarray, mission: Any, probes: Any, cl: np.nd
             return RunEnd(str(ev.kind), float(ev.t), str(ev))
     if len(run.progress) and float(run.progress.v[-1, 0]) >= 1.0:
         return RunEnd("finished", float(run.t[-1]))
-    return RunEnd("duration", float(run.t[-1]))
+    return _stopped_early(run, mission) or RunEnd("duration", float(run.t[-1]))
+
+
+def _stopped_early(run: BagRun, mission: Any) -> RunEnd | None:
+    """``stopped``: a graph's run whose recording ends before the mission's duration, the path not flown and the
+    simulator never saying ``finished`` -- the graph was stopped (``--timeout``, Ctrl-C, a node that failed, a
+    stall) or its recorder was (the gap warnings say so) -- said with where and, if so, that the simulator was
+    stepping on its failsafe; None otherwise."""
+    if not len(run.t) or run.status_value("state", "bb2/simulator") == "finished":
+        return None
+    try:  # what the simulator ran to (its duration_s parameter may replace the mission's), else the mission's
+        duration = float(run.status_value("duration_s", "bb2/simulator") or "nan")
+    except ValueError:
+        duration = math.nan
+    if not math.isfinite(duration) and mission is not None:
+        duration = mission.duration
+    t_end = float(run.t[-1])
+    step = float(np.median(np.diff(run.t))) if len(run.t) > 1 else 0.0
+    if not (math.isfinite(duration) and t_end < duration - 1.5 * step):
+        return None
+    progress = f"; progress {float(run.progress.v[-1, 0]):.3f}" if len(run.progress) else ""
+    failsafe = (f"; the simulator was stepping on its failsafe ({run.status_value('failsafe_reason', 'bb2/simulator')})"
+                if run.status_value("failsafe", "bb2/simulator") == "true" else "")
+    return RunEnd("stopped", t_end, f"stopped at t = {t_end:.2f} s, before the mission's end (duration {duration:g} s"
+                                    f"{progress}): the recording ends there (the graph or its recorder was "
+                                    f"stopped){failsafe}")
 
 
 def _hull_probes(mission: Any, warnings: list[str]) -> Any:

@@ -119,7 +119,8 @@ def write_mission_bag(mission, out: Path, *, custom: dict[str, str] | None = Non
     _publish_state(bag, final, mission.terrain)
     _publish_answers(bag, final.t, runner.stack.step(final))  # the graph answers the last state too
     rtf = runner.sim.t / (time.perf_counter() - wall0)
-    status = DiagnosticStatus(name="bb2/simulator", message="finished", values=[
+    status = DiagnosticStatus(name="bb2/simulator", message="finished", values=[  # as the simulator's last one
+        KeyValue(key="state", value="finished"), KeyValue(key="duration_s", value=f"{mission.duration:g}"),
         KeyValue(key="real_time_factor", value=f"{rtf:.3f}"), KeyValue(key="mission_file", value="")])
     bag.put("/bb2/status", DiagnosticArray(header=Header(stamp=cv.stamp(final.t)), status=[status]), final.t)
     bag.w.close()
@@ -485,6 +486,38 @@ def test_report_renders_in_chromium(bags, tmp_path):
         return int(np.sum(np.all(np.abs(px - np.array(rgb)) < 30, axis=2)))
 
     assert near((31, 119, 180)) > 200 and near((214, 39, 40)) > 100
+
+
+def test_a_run_the_graph_stopped_before_its_end_says_so(bags):
+    """A graph stopped before the mission's end (``bb2-launch --timeout``, Ctrl-C, a node that failed, its stall
+    check) was reported as ended at its ``duration``: now ``stopped``, where, and whether the simulator was
+    stepping on its failsafe; a simulator that said ``finished``, or a recording that reaches the duration, ends
+    at the duration as before."""
+    from bb2_tools.bag_run import StatusEntry
+
+    bag, runner, _traj = bags["circle"]  # 40 s flown, its mission's duration; the simulator said finished
+    assert analyze(read_bag(bag)).figures.end.reason == "duration"
+
+    def stopped_run(**values):  # the bag as a graph stopped at 40 s leaves it: its simulator never finished
+        run = read_bag(bag)
+        run.status = [st for st in run.status if st.name != "bb2/simulator"]
+        if values:
+            run.status.append(StatusEntry(40.0, "bb2/simulator", {"state": "running", **values}))
+        return run
+
+    longer = dataclasses.replace(runner.mission, duration_s=60.0)  # no duration in its statuses: the mission's
+    end = analyze(stopped_run(), mission=longer).figures.end
+    assert (end.reason, end.t_s) == ("stopped", pytest.approx(40.0)) and not end.completed, end
+    assert end.message == ("stopped at t = 40.00 s, before the mission's end (duration 60 s): the recording ends "
+                           "there (the graph or its recorder was stopped)")
+    assert analyze(stopped_run(), mission=runner.mission).figures.end.reason == "duration"  # it reached its end
+    # the simulator's own duration first (its duration_s parameter may replace the mission's); its failsafe said
+    end = analyze(stopped_run(duration_s="600", failsafe="true", failsafe_reason="lockstep timeout: neutral planes, "
+                             "this step's propeller"), mission=longer).figures.end
+    assert end.message == ("stopped at t = 40.00 s, before the mission's end (duration 600 s): the recording ends "
+                           "there (the graph or its recorder was stopped); the simulator was stepping on its "
+                           "failsafe (lockstep timeout: neutral planes, this step's propeller)"), end
+    assert analyze(stopped_run(duration_s="40"), mission=longer).figures.end.reason == "duration"
 
 
 # ------------------------------------------------------------------------------------------ maneuver
