@@ -44,6 +44,7 @@ p.add_argument("--clock", action="store_true")
 p.add_argument("--clock-for", type=float, default=None)  # the clock stands still after this many wall seconds
 p.add_argument("--progress-s", type=float, default=0.0)
 p.add_argument("--crash-after", type=float, default=0.0)
+p.add_argument("--crash-after-clock", type=float, default=0.0)  # wall s after its first /clock message came
 p.add_argument("--crash-attempts", type=int, default=1)
 p.add_argument("--exit-code", type=int, default=3)
 a, _ = p.parse_known_args()
@@ -60,6 +61,10 @@ prog = (node.create_publisher(Float64, "/bb2/mission/progress", qos_profile("/bb
         if a.progress_s else None)
 t0 = time.monotonic()
 ticks = 0
+first_clock = []
+if a.crash_after_clock:
+    node.create_subscription(Clock, "/clock", lambda _m: first_clock or first_clock.append(time.monotonic()),
+                             qos_profile("/clock"))
 def tick():
     global ticks
     ticks += 1
@@ -74,7 +79,8 @@ def tick():
         clock.publish(m)
     if prog:
         prog.publish(Float64(data=min(1.0, el / a.progress_s)))
-    if a.crash_after and el > a.crash_after and attempt < a.crash_attempts:
+    late = bool(first_clock) and time.monotonic() - first_clock[0] > a.crash_after_clock
+    if (a.crash_after and el > a.crash_after or a.crash_after_clock and late) and attempt < a.crash_attempts:
         print(f"fake {a.name}: crashing with {a.exit_code}", flush=True)
         os._exit(a.exit_code)
 node.create_timer(0.02, tick)
@@ -525,7 +531,10 @@ def test_a_node_exiting_2_before_the_first_step_is_bad_input_after_it_a_failure(
     the launch exit 2, as the launcher's own input checks do; once the graph steps, a node's exit is a failure
     (exit 1), whatever its code."""
     a = graph.node("a", "--clock") if stepping else graph.node("a")
-    p = graph.run([a, graph.node("b", "--crash-after", "3.0" if stepping else "0.3", "--exit-code", "2")])
+    # stepping: b crashes 1.5 s after the clock reached it (the launcher's monitor has seen it move by then; 3 s
+    # after b's start was once too early on a loaded machine: the sim time had not reached the monitor yet)
+    crash = ("--crash-after-clock", "1.5") if stepping else ("--crash-after", "0.3")
+    p = graph.run([a, graph.node("b", *crash, "--exit-code", "2")])
     out, err = p.communicate(timeout=60)
     res = _result(out)
     assert res["reason"] == "node 'b' failed (exit code 2)", err
