@@ -476,7 +476,8 @@ def compose_groups(groups: Sequence[str] | None) -> list[tuple[str, ...]]:
                 raise LaunchError("--group: the recorder cannot be composed (it waits on its own wait set); it "
                                   "runs in a process of its own")
             if n not in COMPOSABLE:
-                raise LaunchError(f"--group: unknown node {n!r}; composable: {', '.join(COMPOSABLE)}")
+                raise LaunchError(f"--group: unknown node {n!r}" + did_you_mean(n, COMPOSABLE)
+                                  + f"; composable: {', '.join(COMPOSABLE)}")
             if n in seen:
                 raise LaunchError(f"--group: node {n!r} is in two groups")
             seen.add(n)

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Mapping, Sequence
 
+from bb2_sim.names import did_you_mean
+
 POLICIES = ("stop", "restart", "ignore")
 DEFAULT_MAX_RESTARTS = 3
 
@@ -62,12 +64,18 @@ def parse_restart_policies(specs: Iterable[str], known: Iterable[str],
             if not sep or not name or not value:
                 raise LaunchError(f"--restart expects NODE=POLICY items, got {item!r}")
             if name not in known and name != "all":
-                raise LaunchError(f"--restart: unknown node {name!r}; nodes: {', '.join(known)}")
+                raise LaunchError(f"--restart: unknown node {name!r}" + did_you_mean(name, [*known, "all"])
+                                  + f"; nodes: {', '.join(known)} (or all)")
             action, _, n = value.partition(":")
+            if action not in POLICIES:
+                raise LaunchError(f"--restart {item}: unknown policy {action!r}" + did_you_mean(action, POLICIES)
+                                  + f"; policies: {', '.join(POLICIES)}")
             try:
                 max_n = int(n) if n else default_max
             except ValueError:
-                raise LaunchError(f"--restart: bad restart count in {item!r}") from None
+                raise LaunchError(f"--restart: bad restart count in {item!r} (restart:N, N >= 0)") from None
+            if max_n < 0:
+                raise LaunchError(f"--restart {item}: the restart count must be >= 0, got {max_n}")
             if n and action != "restart":
                 raise LaunchError(f"--restart: a count only goes with 'restart', got {item!r}")
             policy = RestartPolicy(action, max_n)

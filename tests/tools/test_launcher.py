@@ -138,6 +138,18 @@ def test_restart_policies_parse_and_reject_bad_input():
             S.parse_restart_policies([bad], nodes)
     with pytest.raises(S.LaunchError, match="--max-restarts must be >= 0"):
         S.parse_restart_policies([], nodes, default_max=-1)
+    # each says which item, and the likely name of a misspelt node or policy (as --without and --group do)
+    for bad, said in (("mixr=stop", "--restart: unknown node 'mixr' (did you mean 'mixer'?); nodes: simulator, "
+                                    "recorder, mixer (or all)"),
+                      ("mixer=resart", "--restart mixer=resart: unknown policy 'resart' (did you mean 'restart'?); "
+                                       "policies: stop, restart, ignore"),
+                      ("mixer=restart:-1", "--restart mixer=restart:-1: the restart count must be >= 0, got -1")):
+        with pytest.raises(S.LaunchError) as exc:
+            S.parse_restart_policies([bad], nodes)
+        assert str(exc.value) == said
+    with pytest.raises(L.LaunchError) as exc:
+        L.compose_groups(["path_following,mixr"])
+    assert str(exc.value).startswith("--group: unknown node 'mixr' (did you mean 'mixer'?); composable: ")
     assert S.uses_default_max(["simulator=stop, mixer=restart"]) and not S.uses_default_max(["mixer=restart:2"])
     assert not S.uses_default_max([]) and not S.uses_default_max(["all=ignore"])
 
