@@ -340,6 +340,30 @@ def _welch_caveat(tp_s: float, segment_s: float, duration_s: float) -> str:
             f"{tp_s:.3g} s, a record of about {math.ceil(need / 10) * 10:.0f} s resolves Tp to 10 %")
 
 
+ALIASED_ENERGY_FRACTION = 0.01
+"""The share of a sea's energy above the record's Nyquist frequency (periods under 2 dt) that ``bb2-sim sea`` warns of:
+it folds onto longer periods in the record (its Hs holds, its spectrum and Welch Tp do not)."""
+
+
+def aliasing_warning(comps, dt_s: float) -> str:
+    """'' or why a record every ``dt_s`` misrepresents the sea: more than :data:`ALIASED_ENERGY_FRACTION` of its
+    components' energy is at periods under ``2 dt_s`` (at a fixed point the elevation oscillates at omega)."""
+    import numpy as np
+
+    if comps is None or not len(comps):
+        return ""
+    w, e = np.asarray(comps.omega, dtype=float), np.asarray(comps.amplitude, dtype=float) ** 2
+    if e.sum() <= 0:
+        return ""
+    above = float(e[w > math.pi / dt_s].sum() / e.sum())
+    if above <= ALIASED_ENERGY_FRACTION:
+        return ""
+    tp = components_peak_period(comps)
+    return (f"--dt {dt_s:g} s samples {above:.0%} of the sea's energy (periods under {2 * dt_s:.3g} s) below its "
+            f"Nyquist rate: the record aliases it onto longer periods (its spectrum and Welch Tp are not the sea's); "
+            f"take --dt <= {tp / 10:.3g} s (a tenth of Tp {tp:.3g} s)")
+
+
 def components_peak_period(comps) -> float:
     """Tp of a component set: the peak of its energy a^2/2 spread over omega by a Gaussian kernel of three
     mean component spacings (one component: its period)."""
@@ -392,6 +416,8 @@ def run_sea_cli(a: argparse.Namespace) -> int:
         return 2
     if steep := env.sea.steepness_warning(params.g):
         print(f"bb2-sim: warning: {steep}", file=sys.stderr)
+    if aliased := aliasing_warning(sea.components, a.dt):
+        print(f"bb2-sim: warning: {aliased}", file=sys.stderr)
     n = int(math.floor(a.duration / a.dt + 1e-9)) + 1
     from .outputs import check_fits_in_memory
 

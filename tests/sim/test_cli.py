@@ -256,6 +256,25 @@ def test_sea_command_warns_of_a_sea_steeper_than_any_wave_and_writes_it(tmp_path
     assert p.returncode == 0 and "warning" not in p.stderr, p.stderr
 
 
+@pytest.mark.parametrize("dt, warned", [(0.1, False), (0.5, False), (1.0, True), (5.0, True)])
+def test_sea_command_warns_when_its_dt_aliases_the_sea(tmp_path, dt, warned):
+    """A record every dt holds the waves of periods over 2 dt; the shorter ones fold onto longer periods (a 4-s sea
+    every 2 s gave a Welch Tp that was not the sea's, unsaid).  Warned with the share of the energy and the dt that
+    resolves it; the record is written all the same."""
+    import re
+
+    p = run("sea", "--spectrum", "jonswap", "--hs", "1", "--tp", "4", "--duration", "400", "--dt", str(dt), "--out",
+            str(tmp_path / "eta.csv"))
+    assert p.returncode == 0 and (tmp_path / "eta.csv").is_file(), p.stderr
+    said = [ln for ln in p.stderr.splitlines() if "Nyquist" in ln]
+    assert bool(said) == warned, p.stderr
+    if warned:
+        m = re.search(rf"--dt {dt:g} s samples ([0-9]+)% of the sea's energy \(periods under {2 * dt:g} s\) below its "
+                      r"Nyquist rate: .* take --dt <= ([0-9.]+) s \(a tenth of Tp ([0-9.]+) s\)", said[0])
+        assert m and 1 <= int(m.group(1)) <= 100 and float(m.group(2)) < dt, said[0]
+        assert abs(float(m.group(3)) - 4.0) < 0.2, said[0]
+
+
 def test_sea_command_unreadable_component_file_exit_2(tmp_path):
     f = tmp_path / "bad.csv"
     f.write_text("amplitude_m,omega_rad_s\n1,2\n")
