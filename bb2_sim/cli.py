@@ -283,7 +283,10 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
               + (f" ({a.out})" if a.out else ""), file=sys.stderr)
         from .step_stability import substeps_hint
 
-        hint = substeps_hint(res.traj["t_s"], res.traj["U_m_s"], s.substeps, "--substeps")
+        from .profiles import at_rest_hint
+
+        hint = (substeps_hint(res.traj["t_s"], res.traj["U_m_s"], s.substeps, "--substeps")
+                or at_rest_hint(s.profile, s.speed_mps, getattr(res.error, "t", math.inf)))
         if hint:
             print(f"bb2-sim: {hint}", file=sys.stderr)
     try:

@@ -72,3 +72,17 @@ def get_profile(spec: "str | Profile | Mapping" = "iowa") -> Profile:
     sw.update({k: bool(v) for k, v in spec.items()})
     name = base.name + "".join(f"{'+' if v else '-'}{k}" for k, v in spec.items())
     return Profile(name=name, **sw)
+
+
+def at_rest_hint(profile: "str | Profile | Mapping", speed_mps: float, diverged_at_s: float) -> str:
+    """For a run that diverged at its start: '' or why, when it started at rest (``speed_mps`` 0) under a profile
+    without ``zero_speed_guard`` -- the authors' model is singular at zero relative speed (Q13: ``u/|u|`` and the
+    plane incidence divide by it) -- and the profiles that start from rest."""
+    p = get_profile(profile)
+    if p.zero_speed_guard or speed_mps != 0.0 or diverged_at_s > 0.0:
+        return ""
+    quirk = _data()["switches"]["zero_speed_guard"]["quirk"]
+    return (f"it started at rest: the {p.name} profile is singular at zero relative speed ({quirk}: u/|u| and the "
+            "plane incidence divide by it, as in the authors' model); the corrected profile starts from rest, as "
+            "does any with zero_speed_guard: true ({base: iowa, zero_speed_guard: true})")
+

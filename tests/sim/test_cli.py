@@ -275,6 +275,19 @@ def test_sea_command_warns_when_its_dt_aliases_the_sea(tmp_path, dt, warned):
         assert abs(float(m.group(3)) - 4.0) < 0.2, said[0]
 
 
+def test_a_maneuver_started_at_rest_under_iowa_says_why_it_diverged_and_what_starts_from_rest(tmp_path):
+    """``--speed-mps 0``: the authors' model divides by the relative speed (Q13) and the run diverged at t = 0 with
+    'float division by zero' and nothing more; it now says so and names the profiles that start from rest (and the
+    corrected one does: exit 0)."""
+    p = run("maneuver", "self-propulsion", "--speed-mps", "0", "--duration", "2", "--quiet")
+    assert p.returncode == 1, p.stderr
+    assert ("bb2-sim: it started at rest: the iowa profile is singular at zero relative speed (Q13: u/|u| and the "
+            "plane incidence divide by it, as in the authors' model); the corrected profile starts from rest, as does "
+            "any with zero_speed_guard: true ({base: iowa, zero_speed_guard: true})") in p.stderr.splitlines(), p.stderr
+    p = run("maneuver", "self-propulsion", "--speed-mps", "0", "--duration", "2", "--quiet", "--profile", "corrected")
+    assert p.returncode == 0 and "at rest" not in p.stderr, p.stderr
+
+
 def test_sea_command_unreadable_component_file_exit_2(tmp_path):
     f = tmp_path / "bad.csv"
     f.write_text("amplitude_m,omega_rad_s\n1,2\n")

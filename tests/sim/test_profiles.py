@@ -140,6 +140,12 @@ def test_starting_from_rest_needs_the_zero_speed_guard():
     s = maneuver_settings("self-propulsion", speed_mps=0.0, rps=1.2861, depth=50.0, duration=60.0)
     r_iowa = run_maneuver(s, build_model(s))
     assert not r_iowa.completed and r_iowa.error.t == 0.0   # Q13: singular at zero relative speed
+    from bb2_sim.profiles import at_rest_hint  # said beside the error, only where it applies
+
+    assert "it started at rest: the iowa profile is singular" in at_rest_hint("iowa", 0.0, r_iowa.error.t)
+    assert at_rest_hint("corrected", 0.0, 0.0) == at_rest_hint("iowa", 2.0, 0.0) == at_rest_hint("iowa", 0.0, 3.5) == ""
+    assert "the corrected-zero_speed_guard profile is singular" in at_rest_hint(
+        {"base": "corrected", "zero_speed_guard": False}, 0.0, 0.0)  # an ablation of the guard
     s_c = maneuver_settings("self-propulsion", speed_mps=0.0, rps=1.2861, depth=50.0, duration=60.0,
                             profile="corrected")
     r = run_maneuver(s_c, build_model(s_c))

@@ -755,3 +755,18 @@ def test_a_chunk_of_missions_flies_as_one_batch(monkeypatch):
         return {k: v for k, v in row.items() if k != "wall_time_s"}
 
     assert [same(single(spec, i)) for i in (0, 1)] == [same(r) for r in rows[:2]]
+
+
+def test_a_maneuver_run_started_at_rest_under_iowa_says_why_in_its_message():
+    """A campaign varying the start speed down to 0 m/s: the iowa run diverges at t = 0 (the authors' model
+    divides by the relative speed) and its row says so, with the profiles that start from rest; the corrected
+    profile flies it."""
+    from bb2_tools.campaign.worker import run_one
+
+    spec = parse_spec({"maneuver": {"name": "self-propulsion", "options": {"duration": 2}}, "seed": 1,
+                       "vary": {"speed_mps": [0.0], "profile": ["iowa", "corrected"]}})
+    rows = [run_one(spec, i)[0] for i in range(spec.n_runs)]
+    by_profile = {r["profile"]: r for r in rows}
+    assert by_profile["iowa"]["status"] == "diverged", by_profile
+    assert "it started at rest: the iowa profile is singular at zero relative speed" in by_profile["iowa"]["message"]
+    assert by_profile["corrected"]["status"] == "ok", by_profile["corrected"]["message"]
