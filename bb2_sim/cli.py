@@ -165,7 +165,8 @@ def add_maneuver_parser(sub) -> argparse.ArgumentParser:
                                                       "the BB2 hull generated from the table of offsets")
     m.add_argument("--out", metavar="FILE.csv", help="write the trajectory (reference CSV columns and eta_cg_m, "
                                                      "every 0.1 s)")
-    m.add_argument("--plot", metavar="FILE.png", help="draw the maneuver plot")
+    m.add_argument("--plot", metavar="FILE.png", help="draw the maneuver plot (PNG; .pdf, .svg, .eps, .ps by the "
+                   "file's extension)")
     m.add_argument("--overwrite", action="store_true", help="replace existing --out/--plot files (else exit 2)")
     m.add_argument("--quiet", action="store_true", help="no progress line")
     add_sea_options(m, "--wave-heading-deg")
@@ -242,6 +243,10 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
         s = with_sea(s, sea_block_from_args(a, a.sea_state), current_block_from_args(a), a.sea_state)
         model = build_model(s, a.hull_mesh)
         check_initial_depth(s, model)
+        if a.plot:
+            from .plots import plot_format
+
+            plot_format(a.plot)  # a format matplotlib writes, said before the run
     except (ManeuverError, SeaStateError, HullMeshError, ValueError) as e:
         print(f"bb2-sim: error: {e}", file=sys.stderr)
         return 2

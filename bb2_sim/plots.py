@@ -312,12 +312,29 @@ def maneuver_figure(name: str, traj: Trajectory, figures: Figures | None = None,
     return fig
 
 
+PLOT_FORMATS = ("png", "pdf", "svg", "eps", "ps")
+"""The formats a plot file may have, named by its extension (none: PNG)."""
+
+
+def plot_format(path: str | Path) -> str:
+    """The format of a plot file from its extension (``x.pdf``: pdf; none: png); :class:`ValueError` for another
+    (a PNG was written into ``x.pdf`` and ``x.svg``)."""
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if not suffix:
+        return "png"
+    if suffix not in PLOT_FORMATS:
+        raise ValueError(f"{path}: a plot is written as {', '.join(PLOT_FORMATS)} (by its extension), not {suffix!r}")
+    return suffix
+
+
 def plot_maneuver(name: str, traj: Trajectory, out_png: str | Path, figures: Figures | None = None,
                   reference: Trajectory | None = None, settings: Mapping[str, Any] | None = None,
                   dpi: int = 110) -> Path:
-    """Draw the maneuver plot and write it as PNG; returns the path written."""
+    """Draw the maneuver plot and write it in the format of its extension (:func:`plot_format`: PNG, PDF, SVG
+    ...); returns the path written."""
     out = Path(out_png)
+    fmt = plot_format(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig = maneuver_figure(name, traj, figures=figures, reference=reference, settings=settings)
-    fig.savefig(out, dpi=dpi, format="png")
+    fig.savefig(out, dpi=dpi, format=fmt)
     return out

@@ -55,6 +55,7 @@ def test_short_turning_circle_writes_csv_plot_and_figures(tmp_path):
     (["maneuver", "hzz", "--sail-planes", "half"], "invalid choice"),
     (["maneuver", "hzz", "--substeps", "0"], "--substeps: must be >= 1"),
     (["maneuver", "hzz", "--substeps", "1.5"], "--substeps: not an integer"),
+    (["maneuver", "hzz", "--plot", "/nonexistent_dir/hzz.txt"], "a plot is written as png, pdf, svg, eps, ps"),
 ])
 def test_bad_input_one_clear_error_exit_2(args, needle):
     p = run(*args)

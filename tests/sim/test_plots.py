@@ -115,3 +115,19 @@ def test_unknown_maneuver_is_rejected(tmp_path):
     with pytest.raises(TrajectoryError, match="unknown maneuver"):
         plot_maneuver("loop-the-loop", synthetic_turn(), tmp_path / "x.png")
     assert not (tmp_path / "x.png").exists()
+
+
+def test_the_plot_is_written_in_the_format_of_its_extension(tmp_path):
+    """``--plot x.pdf`` wrote a PNG into x.pdf (and x.svg); the extension now names the format (none: PNG), and
+    one matplotlib does not write is refused before anything is drawn."""
+    from bb2_sim.plots import plot_format
+
+    heads = {"pdf": b"%PDF", "svg": b"<?xml", "png": b"\x89PNG"}
+    for ext, head in heads.items():
+        out = plot_maneuver("turning-circle", synthetic_turn(), tmp_path / f"tc.{ext.upper()}")
+        assert out.read_bytes()[:len(head)] == head, ext
+    assert plot_maneuver("turning-circle", synthetic_turn(), tmp_path / "tc").read_bytes()[:4] == b"\x89PNG"
+    with pytest.raises(ValueError, match=r"tc.txt: a plot is written as png, pdf, svg, eps, ps \(by its extension\), "
+                                         r"not 'txt'"):
+        plot_maneuver("turning-circle", synthetic_turn(), tmp_path / "tc.txt")
+    assert not (tmp_path / "tc.txt").exists() and plot_format("a.Eps") == "eps"
