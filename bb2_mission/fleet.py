@@ -26,7 +26,8 @@ from typing import Any
 
 import yaml
 
-from bb2_mission.schema import MISSIONS_DIR, Mission, MissionError, load_mission
+from bb2_mission.schema import (MISSIONS_DIR, Mission, MissionError, load_mission, shipped_missions,
+                                shipped_name_hint)
 from bb2_sim.names import unknown_keys_hint
 from bb2_sim.outputs import plain_name
 from bb2_sim.yaml_files import load as load_yaml
@@ -97,6 +98,33 @@ def _read(file: Path) -> dict[str, Any]:
     if not isinstance(doc, dict):
         raise MissionError(f"{file}: a fleet file is a mapping with 'boats', got {type(doc).__name__}")
     return doc
+
+
+FLEETS_DIR = MISSIONS_DIR / "fleets"
+"""The shipped fleet files (``canyon_pair``)."""
+
+
+def shipped_fleets() -> list[str]:
+    """The names of the shipped fleets (``missions/fleets/*.yaml`` without .yaml)."""
+    return sorted(f.stem for f in FLEETS_DIR.glob("*.yaml"))
+
+
+def run_file(value: str | Path) -> Path:
+    """What ``bb2-launch`` flies: a mission or fleet file, or the name of a shipped mission or fleet (``canyon``,
+    ``canyon_pair``: ``bb2-sim mission canyon`` and ``ros2 launch ... mission:=canyon`` take the name too) when no
+    such file is here.  A file that is not there stays as given (its check says so, with :func:`run_file_hint`)."""
+    f = Path(value)
+    if f.exists() or f.suffix or len(f.parts) != 1:
+        return f
+    for shipped in (MISSIONS_DIR / f"{f}.yaml", FLEETS_DIR / f"{f}.yaml"):
+        if shipped.is_file():
+            return shipped
+    return f
+
+
+def run_file_hint(value: str | Path) -> str:
+    """For a run file that does not exist: the likely shipped mission or fleet name and the shipped ones."""
+    return shipped_name_hint(value, sorted({*shipped_missions(), *shipped_fleets()}), "missions and fleets")
 
 
 def is_fleet_file(file: str | Path) -> bool:

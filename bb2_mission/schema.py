@@ -74,7 +74,7 @@ from bb2_planner.terrain import PathBelowTerrainError, Terrain, TerrainError, Te
 from bb2_sim.environment import Environment, current_from_mapping, sea_from_mapping
 from bb2_sim.sea import SeaInputError
 from bb2_sim.sensors.config import SensorConfigError, SensorSpec, navigation_from_value, sensors_from_mapping
-from bb2_sim.names import unknown_keys_hint
+from bb2_sim.names import did_you_mean, unknown_keys_hint
 from bb2_sim.outputs import plain_name
 from bb2_sim.yaml_files import load as load_yaml
 
@@ -196,6 +196,8 @@ def _vec3(v: Any, what: str) -> tuple[float, float, float]:
 def _read_yaml(file: Path) -> dict[str, Any]:
     try:
         doc = load_yaml(file.read_text(encoding="utf-8"))
+    except FileNotFoundError as e:
+        raise MissionError(f"{file}: cannot read mission file ({e.strerror}){shipped_name_hint(file)}") from None
     except OSError as e:
         raise MissionError(f"{file}: cannot read mission file ({e.strerror})") from None
     except UnicodeDecodeError as e:
@@ -450,6 +452,21 @@ def initial_state(m: Mission) -> np.ndarray:
     return x0
 
 
+def shipped_missions() -> list[str]:
+    """The names of the shipped missions (``missions/*.yaml`` without .yaml: canyon, circle ...)."""
+    return sorted(f.stem for f in MISSIONS_DIR.glob("*.yaml"))
+
+
+def shipped_name_hint(value: str | Path, names: list[str] | None = None, what: str = "missions") -> str:
+    """For a file that does not exist and could be a shipped name (no folder, no suffix): ``" (did you mean
+    'canyon'?); shipped missions: canyon, circle, ..."``, else ``""``."""
+    f = Path(value)
+    if f.suffix or len(f.parts) != 1:
+        return ""
+    names = shipped_missions() if names is None else names
+    return f"{did_you_mean(str(value), names)}; shipped {what}: {', '.join(names)}"
+
+
 def mission_file(file: str | Path) -> Path:
     """The mission file ``file`` names: itself, or for a bare name not found here (``canyon``) ``missions/``'s."""
     f = Path(file)
@@ -472,7 +489,8 @@ def read_mission_document(file: str | Path) -> dict[str, Any]:
         if bf is None and isinstance(base, str) and mission_file(base).exists():   # a shipped name
             bf = mission_file(base)
         if bf is None:
-            raise MissionError(f"{holder}: extends: mission file {base!r} not found")
+            raise MissionError(f"{holder}: extends: mission file {base!r} not found"
+                               + (shipped_name_hint(base) if isinstance(base, str) else ""))
         if bf.resolve() in seen:
             raise MissionError(f"{f}: extends: cycle through {bf}")
         seen.add(bf.resolve())

@@ -839,7 +839,8 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
                                 epilog=__doc__.split("\n\n", 1)[1],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("mission", type=Path, nargs="?", help="mission YAML (as for `bb2-sim mission`), or a fleet "
-                   "file (bb2_mission.fleet: every boat in its namespace, one recorder for all)")
+                   "file (bb2_mission.fleet: every boat in its namespace, one recorder for all), or a shipped "
+                   "mission's or fleet's name (canyon, canyon_pair)")
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
                    help="simulator time mode (default lockstep)")
     p.add_argument("--params", type=Path, default=None, help="ROS 2 params file passed to every node")
@@ -895,7 +896,15 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     p.add_argument("--install-ros-ws", action="store_true",
                    help="install the bb2_ros_ws packaging into this venv (lib/<pkg>/<exe>, ament index) "
                         "and exit")
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    if args.mission is not None:  # a shipped mission's or fleet's name, as bb2-sim mission and ros2 launch take it
+        try:
+            from bb2_mission.fleet import run_file
+        except ImportError:
+            pass
+        else:
+            args.mission = run_file(args.mission)
+    return args
 
 
 def check_run_options(args: argparse.Namespace) -> None:
@@ -939,7 +948,10 @@ def _main(argv: Sequence[str] | None) -> int:
     try:
         if args.mission is None:
             raise LaunchError("a mission file is required")
-        from bb2_mission.fleet import is_fleet_file
+        from bb2_mission.fleet import is_fleet_file, run_file_hint
+
+        if not args.mission.exists():  # (a shipped name was taken by parse_args): the likely one
+            raise LaunchError(f"mission file {args.mission.resolve()} does not exist{run_file_hint(args.mission)}")
 
         if is_fleet_file(args.mission):
             raise LaunchError(f"{args.mission} is a fleet file: run it with bb2-launch "

@@ -62,3 +62,20 @@ def test_the_campaign_reads_the_same_document(tmp_path):
     (tmp_path / "bin.yaml").write_bytes(b"name: x\n\xd0\xff\x00\n")
     with pytest.raises(SpecError, match=r"mission: .*bin.yaml: not UTF-8 text \(byte 8\)"):
         parse_spec({"mission": str(tmp_path / "bin.yaml"), "samples": 1})
+
+
+def test_a_misspelt_shipped_name_is_named_with_the_likely_one(tmp_path, monkeypatch):
+    """``bb2-sim mission canyn`` and ``extends: circel`` said only 'No such file or directory' / 'not found': both
+    now name the likely shipped mission and list the shipped ones (a path, or a name with a suffix, gets no list)."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(MissionError) as exc:
+        load_mission("canyn")
+    assert str(exc.value).startswith("canyn: cannot read mission file (No such file or directory) (did you mean "
+                                     "'canyon'?); shipped missions: canyon, canyon_los,"), exc.value
+    (tmp_path / "e.yaml").write_text("extends: circel\n")
+    with pytest.raises(MissionError, match=r"extends: mission file 'circel' not found \(did you mean 'circle'\?\); "
+                                           r"shipped missions: canyon"):
+        load_mission(tmp_path / "e.yaml")
+    with pytest.raises(MissionError) as exc:
+        load_mission(tmp_path / "nope.yaml")
+    assert "shipped missions" not in str(exc.value)

@@ -320,6 +320,8 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("bb2_graph.launch.py", ["without:=mixr"], "launch argument without: unknown node 'mixr' (did you mean "
              "'mixer'?); nodes that may be left out: planner, path_following, l1_autopilot, mixer"),
             ("bb2_graph.launch.py", ["without:=simulator"], "the simulator is the boat itself"),
+            ("bb2_graph.launch.py", ["mission:=canyn"], "no mission 'canyn' in "),
+            ("fleet.launch.py", ["fleet:=canyon_par"], "(did you mean 'canyon_pair'?) (there: canyon_pair)"),
             ("bb2_graph.launch.py", ["stall_timeout:=-1"], "launch argument stall_timeout must be >= 0 and finite, "
              "got -1"),
             ("fleet.launch.py", ["stall_timeout:=1min"], "launch argument stall_timeout must be a number of wall "

@@ -734,6 +734,23 @@ def test_without_refuses_what_cannot_be_left_out(tmp_path, capsys, args, said):
     assert said in err and err.count("\n") == 1, err
 
 
+def test_a_shipped_mission_or_fleet_is_flown_by_its_name_and_a_misspelt_one_is_named(tmp_path, capsys, monkeypatch):
+    """``bb2-sim mission canyon`` and ``ros2 launch ... mission:=canyon`` take a shipped name; ``bb2-launch canyon``
+    said 'mission file ./canyon does not exist'.  It now flies the shipped mission (or fleet: canyon_pair), a file
+    of that name here first, and a misspelt name is refused with the likely one."""
+    from bb2_mission.schema import MISSIONS_DIR
+
+    monkeypatch.chdir(tmp_path)
+    assert L.parse_args(["canyon"]).mission == MISSIONS_DIR / "canyon.yaml"
+    assert L.parse_args(["canyon_pair"]).mission == MISSIONS_DIR / "fleets" / "canyon_pair.yaml"
+    (tmp_path / "canyon").write_text("extends: canyon\n")
+    assert L.parse_args(["canyon"]).mission == Path("canyon")  # a file here is what it names
+    assert L.main(["canyn"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"bb2-launch: error: mission file {tmp_path / 'canyn'} does not exist (did you mean "
+                          "'canyon'?); shipped missions and fleets: canyon, ") and "canyon_pair" in err, err
+
+
 def test_without_leaves_the_nodes_out_of_the_graph_and_of_a_composed_process(tmp_path):
     mission = REPO / "missions" / "straight.yaml"
     names = [s.name for s in L.graph_specs(mission, tmp_path / "run", without=("l1_autopilot", "mixer"))]

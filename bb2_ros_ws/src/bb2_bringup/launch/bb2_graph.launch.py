@@ -61,6 +61,7 @@ from launch_ros.actions import Node
 from launch_ros.substitutions import ExecutableInPackage
 
 from bb2_msgs_py.contract import RECORDER_ACK_WINDOW, check_namespace
+from bb2_sim.names import did_you_mean
 from bb2_sim.outputs import OutputError, claim_run_dir
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
 from bb2_tools.dds_shm import clean_after_kill
@@ -98,7 +99,8 @@ def installed_or_file(value: str, folder: Path, what: str) -> Path:
     f = folder / f"{value}.yaml"
     if not f.is_file():
         names = sorted(m.stem for m in folder.glob("*.yaml"))
-        raise RuntimeError(f"no {what} {value!r} in {folder} (there: {', '.join(names) or 'none'})")
+        raise RuntimeError(f"no {what} {value!r} in {folder}{did_you_mean(value, names)} (there: "
+                           f"{', '.join(names) or 'none'})")
     return f
 
 
