@@ -341,8 +341,10 @@ def _find_mission(value: str, spec_dir: Path | None) -> Path:
     for c in cands:
         if c.is_file():
             return c.resolve()
+    from bb2_mission.schema import shipped_name_hint
+
     raise SpecError(f"mission: file {value!r} not found (looked beside the SPEC, in the working directory"
-                    " and in missions/)")
+                    f" and in missions/){shipped_name_hint(value)}")
 
 
 def parse_spec(doc: Any, *, spec_file: str | Path | None = None) -> CampaignSpec:

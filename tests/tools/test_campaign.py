@@ -283,6 +283,8 @@ BAD = [
     ({"mision": "circle"}, "mision"),
     ({}, "mission / maneuver"),
     ({"mission": "no_such_mission.yaml"}, "mission"),
+    ({"mission": "circel"}, "mission: file 'circel' not found (looked beside the SPEC, in the working directory and in "
+                            "missions/) (did you mean 'circle'?); shipped missions: canyon"),
     ({"mission": "circle", "samples": 0}, "samples"),
     ({"mission": "circle", "vary": {"initial.speed_mps": {"uniform": [5, 1]}}}, "vary.initial.speed_mps"),
     ({"mission": "circle", "vary": {"initial.speed_mps": {"gauss": [5, 1]}}}, "vary.initial.speed_mps"),
