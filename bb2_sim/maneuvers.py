@@ -122,7 +122,7 @@ def maneuver_settings(name: str, **overrides) -> ManeuverSettings:
     (:func:`with_sea`)."""
     cat = _catalogue()
     if name not in cat:
-        raise ManeuverError(f"unknown maneuver {name!r} (choose from {', '.join(cat)})")
+        raise ManeuverError(f"unknown maneuver {name!r}{did_you_mean(name, cat)} (choose from {', '.join(cat)})")
     d = dict(cat[name])
     d.update({k: v for k, v in overrides.items() if v is not None})
     sea_doc, current_doc = d.pop("sea", None), d.pop("current", None)

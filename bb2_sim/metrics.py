@@ -708,4 +708,7 @@ def figures_for(maneuver_name: str, traj: Trajectory, **settings: Any) -> Figure
                               settled_from_s=settings.get("settled_from_s"))
     if name == "open-loop":
         return open_loop_figures(traj, window)
-    raise TrajectoryError(f"unknown maneuver {maneuver_name!r}; known: {', '.join(MANEUVER_NAMES)}")
+    from bb2_sim.names import did_you_mean
+
+    raise TrajectoryError(f"unknown maneuver {maneuver_name!r}{did_you_mean(maneuver_name, MANEUVER_NAMES)}; known: "
+                          f"{', '.join(MANEUVER_NAMES)}")

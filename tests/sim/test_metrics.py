@@ -231,6 +231,8 @@ def test_bad_input_raises_one_clear_error():
         zigzag_figures(traj, "phi_deg", 20.0)
     with pytest.raises(TrajectoryError, match="unknown maneuver"):
         figures_for("barrel-roll", traj)
+    with pytest.raises(TrajectoryError, match=r"unknown maneuver 'turnng-circle' \(did you mean 'turning-circle'\?\)"):
+        figures_for("turnng-circle", traj)  # bb2-analyze --maneuver's typo: the likely name
     with pytest.raises(TrajectoryError, match="rows"):
         self_propulsion_figures(dict(traj, u_m_s=traj["u_m_s"][:5]))
     assert issubclass(TrajectoryError, ValueError)
