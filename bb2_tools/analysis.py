@@ -189,7 +189,8 @@ class RunEnd:
     mission's limits, :func:`bb2_mission.limit_event`; the runner stops there, the graph flies on),
     ``diverged`` (the simulator said so, or a state is not finite), and in a graph's bag alone ``stalled`` (its
     simulator stopped on the failsafe after ``stall_timeout_s``: no controller answered) or ``stopped`` (the
-    recording ends before the mission's duration, the simulator never finished: the graph was stopped) -- at
+    recording ends before the mission's duration, the simulator never finished: the graph or its recorder was
+    stopped) -- at
     ``t_s`` (s; None: unknown), and for a failure the ``message`` the runner gives (``grounded at t = 12.35 s, CG
     at ...: lowest hull point ...``).  Limits are checked only when the mission is known."""
 
