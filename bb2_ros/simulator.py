@@ -464,7 +464,7 @@ class Simulator(Node):
     def _set_exit_at_end(self, value: bool) -> None:
         self.exit_at_end = value
         if value and (self.diverged or self.stalled):
-            self.done = True
+            self._end_after_error()
         elif value and self.finished:
             self._end_when_recorded()
 
@@ -498,14 +498,27 @@ class Simulator(Node):
             self.get_logger().info(f"the recorder acknowledged the final step after "
                                    f"{time.monotonic() - self._final_wait_since:.1f} s")
             self._final_wait_said = False
+        if self._statuses_waited_for():
+            self.done = True
+
+    def _end_after_error(self) -> None:
+        """A run stopped on an error (``diverged``, ``stalled``) ends (``done``, with ``exit_at_end``) once every
+        reader of ``bb2/status`` has the status that says why (at most ``STATUS_DELIVERY_TIMEOUT_S``): the node's
+        writers go with it, and the recorder's bag would end without it (a stalled run analysed as stopped)."""
+        if self.exit_at_end and not self.done and self._statuses_waited_for():
+            self.done = True
+
+    def _statuses_waited_for(self) -> bool:
+        """Whether the statuses have reached every reader of ``bb2/status`` (with ``wait_for_readers``; else at
+        once), or the wait for them is over (``STATUS_DELIVERY_TIMEOUT_S``, said)."""
         if self.wait_for_readers and not self._statuses_delivered():
             now = time.monotonic()
             self._status_wait_since = self._status_wait_since or now
             if now - self._status_wait_since < STATUS_DELIVERY_TIMEOUT_S:
-                return
+                return False
             self.get_logger().warning(f"the statuses were not delivered to every reader of bb2/status within "
                                       f"{STATUS_DELIVERY_TIMEOUT_S:g} s: ending all the same")
-        self.done = True
+        return True
 
     def _statuses_delivered(self) -> bool:
         """Whether every reader of ``bb2/status`` the graph shows is matched with this node's status writer and has
@@ -613,7 +626,7 @@ class Simulator(Node):
         self.exit_code = 1
         self.get_logger().error(self.stalled)
         self._publish_status()
-        self.done = self.exit_at_end
+        self._end_after_error()
         return True
 
     def _start(self) -> None:
@@ -655,6 +668,8 @@ class Simulator(Node):
     def _watchdog(self) -> None:
         if self.finished and not self.done:
             self._end_when_recorded()  # bounded wait for the recorder's acknowledgement of the final step
+        elif (self.diverged or self.stalled) and not self.done:
+            self._end_after_error()  # bounded wait for the status that says why to reach the recorder
         if not self._stepping() or not self.started:
             return
         if self._held is not None:  # answered; waiting for the recorder, not the controllers
@@ -864,6 +879,8 @@ class Simulator(Node):
         """Real-time step (the stepping thread, at its deadline ``self._next_tick``)."""
         if self.finished and not self.done:
             self._end_when_recorded()  # bounded wait for the statuses to reach the recorder
+        elif (self.diverged or self.stalled) and not self.done:
+            self._end_after_error()
         now = time.monotonic()
         if not self._stepping():  # finished or diverged: poll the end at the step rate, never spin
             self._next_tick = now + period
@@ -895,7 +912,7 @@ class Simulator(Node):
             self.exit_code = 1
             self.get_logger().error(f"simulation stopped: {self.diverged}")
             self._publish_status()
-            self.done = self.exit_at_end
+            self._end_after_error()
             return
         finished = self.t >= self.duration_s - 1e-9 or self._path_flown
         if self.nav is not None:  # the filter takes the samples of this step before its estimate of t_n+1 goes out
