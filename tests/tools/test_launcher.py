@@ -44,7 +44,7 @@ p.add_argument("--clock", action="store_true")
 p.add_argument("--clock-for", type=float, default=None)  # the clock stands still after this many wall seconds
 p.add_argument("--progress-s", type=float, default=0.0)
 p.add_argument("--crash-after", type=float, default=0.0)
-p.add_argument("--crash-after-clock", type=float, default=0.0)  # wall s after its first /clock message came
+p.add_argument("--crash-on-file", type=Path, default=None)  # crash once this file exists
 p.add_argument("--crash-attempts", type=int, default=1)
 p.add_argument("--exit-code", type=int, default=3)
 a, _ = p.parse_known_args()
@@ -61,10 +61,6 @@ prog = (node.create_publisher(Float64, "/bb2/mission/progress", qos_profile("/bb
         if a.progress_s else None)
 t0 = time.monotonic()
 ticks = 0
-first_clock = []
-if a.crash_after_clock:
-    node.create_subscription(Clock, "/clock", lambda _m: first_clock or first_clock.append(time.monotonic()),
-                             qos_profile("/clock"))
 def tick():
     global ticks
     ticks += 1
@@ -79,8 +75,8 @@ def tick():
         clock.publish(m)
     if prog:
         prog.publish(Float64(data=min(1.0, el / a.progress_s)))
-    late = bool(first_clock) and time.monotonic() - first_clock[0] > a.crash_after_clock
-    if (a.crash_after and el > a.crash_after or a.crash_after_clock and late) and attempt < a.crash_attempts:
+    due = a.crash_after and el > a.crash_after or a.crash_on_file is not None and a.crash_on_file.exists()
+    if due and attempt < a.crash_attempts:
         print(f"fake {a.name}: crashing with {a.exit_code}", flush=True)
         os._exit(a.exit_code)
 node.create_timer(0.02, tick)
@@ -105,6 +101,14 @@ from bb2_tools.supervisor import ProcessSpec, RestartPolicy, Supervisor
 
 cfg = json.loads(Path(sys.argv[1]).read_text())
 mon = GraphMonitor(cfg["domain"])
+if cfg.get("stepping_file"):  # said once the launcher's monitor has seen the graph step (a test's node may crash)
+    import threading, time
+
+    def say_stepping():
+        while not mon.stepping_started:
+            time.sleep(0.05)
+        Path(cfg["stepping_file"]).write_text("stepping")
+    threading.Thread(target=say_stepping, daemon=True).start()
 specs = []
 for s in cfg["nodes"]:
     ready = None
@@ -543,10 +547,11 @@ def test_a_node_exiting_2_before_the_first_step_is_bad_input_after_it_a_failure(
     the launch exit 2, as the launcher's own input checks do; once the graph steps, a node's exit is a failure
     (exit 1), whatever its code."""
     a = graph.node("a", "--clock") if stepping else graph.node("a")
-    # stepping: b crashes 1.5 s after the clock reached it (the launcher's monitor has seen it move by then; 3 s
-    # after b's start was once too early on a loaded machine: the sim time had not reached the monitor yet)
-    crash = ("--crash-after-clock", "1.5") if stepping else ("--crash-after", "0.3")
-    p = graph.run([a, graph.node("b", *crash, "--exit-code", "2")])
+    # stepping: b crashes once the launcher's monitor has seen the graph step (3 s after b's start, or 1.5 s after
+    # the clock reached b, were too early on a machine loaded with two CPU hogs: the monitor had not seen it yet)
+    flag = graph.dir / "stepping"
+    crash = ("--crash-on-file", str(flag)) if stepping else ("--crash-after", "0.3")
+    p = graph.run([a, graph.node("b", *crash, "--exit-code", "2")], stepping_file=str(flag) if stepping else None)
     out, err = p.communicate(timeout=60)
     res = _result(out)
     assert res["reason"] == "node 'b' failed (exit code 2)", err
