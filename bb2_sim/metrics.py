@@ -683,6 +683,11 @@ def _z_ref(settings: Mapping[str, Any], *depth_keys: str) -> float | None:
     return None
 
 
+FIGURE_SETTINGS = ("settle_window_s", "amplitude_deg", "check_deg", "settled_from_s", "z_ref_m", "depth_ref", "depth",
+                   "heading_ref_deg", "length_m")
+"""The settings :func:`figures_for` reads (the others of a maneuver's entry are ignored)."""
+
+
 def figures_for(maneuver_name: str, traj: Trajectory, **settings: Any) -> Figures:
     """Figures of a named maneuver (names of ``bb2_sim/data/maneuvers.yaml``).
 

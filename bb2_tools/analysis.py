@@ -443,6 +443,20 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
     # maneuver
     maneuver = maneuver or run.custom_data.get("maneuver") or None
     man_figs = man_traj = None
+    if maneuver_settings and not maneuver:  # (they were ignored without a word)
+        raise AnalysisError("maneuver settings apply to a maneuver's figures: name the maneuver (--maneuver NAME; "
+                            "the bag names none)")
+    if maneuver_settings:
+        from dataclasses import fields
+
+        from bb2_sim.maneuvers import ManeuverSettings
+        from bb2_sim.metrics import FIGURE_SETTINGS
+        from bb2_sim.names import unknown_keys_hint
+
+        known = {*FIGURE_SETTINGS, *(f.name for f in fields(ManeuverSettings))}
+        if unknown := sorted(set(maneuver_settings) - known):
+            raise AnalysisError(f"unknown maneuver setting(s) {unknown}{unknown_keys_hint(unknown, known)}; the "
+                                f"figures read: {', '.join(FIGURE_SETTINGS)}")
     if maneuver:
         from bb2_sim import metrics
         from bb2_sim.maneuvers import ManeuverError, maneuver_settings as settings_of

@@ -530,6 +530,22 @@ def test_a_missions_run_with_a_maneuvers_figures_keeps_its_own_end(bags):
     assert a.figures.end.reason == runner.end_reason.value == "duration"
 
 
+def test_maneuver_settings_are_checked_not_ignored(bags):
+    """--maneuver-settings with a misspelt key ({"rudder": 20}), or on a bag that names no maneuver without
+    --maneuver, were ignored without a word: each is refused, the misspelt key with the likely one."""
+    from bb2_tools.bag_run import AnalysisError
+
+    bag, _runner, _traj = bags["circle"]
+    with pytest.raises(AnalysisError, match=r"unknown maneuver setting\(s\) \['rudder'\] \(did you mean 'rudder_deg'\?\); "
+                                            r"the figures read: settle_window_s, amplitude_deg"):
+        analyze(read_bag(bag), maneuver="turning-circle", maneuver_settings={"rudder": 20})
+    with pytest.raises(AnalysisError, match="maneuver settings apply to a maneuver's figures: name the maneuver"):
+        analyze(read_bag(bag), maneuver_settings={"length_m": 70.0})
+    a = analyze(read_bag(bag), maneuver="turning-circle", maneuver_settings={"rudder_deg": 20, "length_m": 35.0})
+    b = analyze(read_bag(bag), maneuver="turning-circle")
+    assert a.maneuver_figures is not None and a.maneuver_figures != b.maneuver_figures  # length_m read
+
+
 def test_maneuver_figures_from_bag(tmp_path):
     """A turning circle recorded as the simulator would publish it: bb2_sim.metrics figures from the bag."""
     from dataclasses import asdict
