@@ -85,4 +85,3 @@ def at_rest_hint(profile: "str | Profile | Mapping", speed_mps: float, diverged_
     return (f"it started at rest: the {p.name} profile is singular at zero relative speed ({quirk}: u/|u| and the "
             "plane incidence divide by it, as in the authors' model); the corrected profile starts from rest, as "
             "does any with zero_speed_guard: true ({base: iowa, zero_speed_guard: true})")
-

@@ -109,7 +109,7 @@ def _run_only(spec: Any, index: int, out: Path) -> int:
         if spec.target == "mission":
             from bb2_mission import MISSION_COLUMNS
 
-            traj_file = out / f"{plain_name(spec.document(index).get('name', spec.name), 'the run mission name')}.csv"
+            traj_file = out / f"{plain_name(spec.document(index).get('name', spec.name), "the run's mission name")}.csv"
             writer = CsvWriter(traj_file, MISSION_COLUMNS)
             on_row = writer.write
         else:
