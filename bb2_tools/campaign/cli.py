@@ -109,7 +109,8 @@ def _run_only(spec: Any, index: int, out: Path) -> int:
         if spec.target == "mission":
             from bb2_mission import MISSION_COLUMNS
 
-            traj_file = out / f"{plain_name(spec.document(index).get('name', spec.name), "the run's mission name")}.csv"
+            run_name = plain_name(spec.document(index).get("name", spec.name), "the run's mission name")
+            traj_file = out / f"{run_name}.csv"
             writer = CsvWriter(traj_file, MISSION_COLUMNS)
             on_row = writer.write
         else:
