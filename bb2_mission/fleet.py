@@ -26,7 +26,7 @@ from typing import Any
 
 import yaml
 
-from bb2_mission.schema import (MISSIONS_DIR, Mission, MissionError, load_mission, shipped_missions,
+from bb2_mission.schema import (MISSIONS_DIR, Mission, MissionError, load_mission, mission_file, shipped_missions,
                                 shipped_name_hint)
 from bb2_sim.names import unknown_keys_hint
 from bb2_sim.outputs import plain_name
@@ -113,13 +113,11 @@ def run_file(value: str | Path) -> Path:
     """What ``bb2-launch`` flies: a mission or fleet file, or the name of a shipped mission or fleet (``canyon``,
     ``canyon_pair``: ``bb2-sim mission canyon`` and ``ros2 launch ... mission:=canyon`` take the name too) when no
     such file is here.  A file that is not there stays as given (its check says so, with :func:`run_file_hint`)."""
-    f = Path(value)
-    if f.exists() or f.suffix or len(f.parts) != 1:
+    f = mission_file(value)  # a file here, else a shipped mission of that name
+    if f.exists() or Path(value).suffix or len(Path(value).parts) != 1:
         return f
-    for shipped in (MISSIONS_DIR / f"{f}.yaml", FLEETS_DIR / f"{f}.yaml"):
-        if shipped.is_file():
-            return shipped
-    return f
+    fleet = FLEETS_DIR / f"{value}.yaml"
+    return fleet if fleet.is_file() else f
 
 
 def run_file_hint(value: str | Path) -> str:

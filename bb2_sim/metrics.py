@@ -23,6 +23,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from bb2_sim.names import did_you_mean
 from bb2_sim.parameters import RomParameters, load_parameters
 
 Trajectory = Mapping[str, np.ndarray]
@@ -713,7 +714,5 @@ def figures_for(maneuver_name: str, traj: Trajectory, **settings: Any) -> Figure
                               settled_from_s=settings.get("settled_from_s"))
     if name == "open-loop":
         return open_loop_figures(traj, window)
-    from bb2_sim.names import did_you_mean
-
     raise TrajectoryError(f"unknown maneuver {maneuver_name!r}{did_you_mean(maneuver_name, MANEUVER_NAMES)}; known: "
                           f"{', '.join(MANEUVER_NAMES)}")

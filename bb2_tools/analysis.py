@@ -598,15 +598,15 @@ def _run_end(run: BagRun, tick: np.ndarray, mission: Any, probes: Any, cl: np.nd
             return RunEnd(str(ev.kind), float(ev.t), str(ev))
     if len(run.progress) and float(run.progress.v[-1, 0]) >= 1.0:
         return RunEnd("finished", float(run.t[-1]))
-    return _stopped_early(run, mission) or RunEnd("duration", float(run.t[-1]))
+    return _stopped_early(run, mission, sim_state) or RunEnd("duration", float(run.t[-1]))
 
 
-def _stopped_early(run: BagRun, mission: Any) -> RunEnd | None:
+def _stopped_early(run: BagRun, mission: Any, sim_state: str | None) -> RunEnd | None:
     """``stopped``: a graph's run whose recording ends before the mission's duration, the path not flown and the
     simulator never saying ``finished`` -- the graph was stopped (``--timeout``, Ctrl-C, a node that failed, a
     stall) or its recorder was (the gap warnings say so) -- said with where and, if so, that the simulator was
-    stepping on its failsafe; None otherwise."""
-    if not len(run.t) or run.status_value("state", "bb2/simulator") == "finished":
+    stepping on its failsafe (``sim_state``: the simulator's last ``state``); None otherwise."""
+    if not len(run.t) or sim_state == "finished":
         return None
     try:  # what the simulator ran to (its duration_s parameter may replace the mission's), else the mission's
         duration = float(run.status_value("duration_s", "bb2/simulator") or "nan")

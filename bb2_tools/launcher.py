@@ -898,12 +898,9 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
                         "and exit")
     args = p.parse_args(argv)
     if args.mission is not None:  # a shipped mission's or fleet's name, as bb2-sim mission and ros2 launch take it
-        try:
-            from bb2_mission.fleet import run_file
-        except ImportError:
-            pass
-        else:
-            args.mission = run_file(args.mission)
+        from bb2_mission.fleet import run_file
+
+        args.mission = run_file(args.mission)
     return args
 
 

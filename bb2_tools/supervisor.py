@@ -45,9 +45,10 @@ class RestartPolicy:
 
     def __post_init__(self):
         if self.action not in POLICIES:
-            raise LaunchError(f"restart policy must be one of {POLICIES}, got {self.action!r}")
+            raise LaunchError(f"unknown policy {self.action!r}" + did_you_mean(self.action, POLICIES)
+                              + f"; policies: {', '.join(POLICIES)}")
         if self.max_restarts < 0:
-            raise LaunchError(f"max restarts must be >= 0, got {self.max_restarts}")
+            raise LaunchError(f"the restart count must be >= 0, got {self.max_restarts}")
 
 
 def parse_restart_policies(specs: Iterable[str], known: Iterable[str],
@@ -67,18 +68,16 @@ def parse_restart_policies(specs: Iterable[str], known: Iterable[str],
                 raise LaunchError(f"--restart: unknown node {name!r}" + did_you_mean(name, [*known, "all"])
                                   + f"; nodes: {', '.join(known)} (or all)")
             action, _, n = value.partition(":")
-            if action not in POLICIES:
-                raise LaunchError(f"--restart {item}: unknown policy {action!r}" + did_you_mean(action, POLICIES)
-                                  + f"; policies: {', '.join(POLICIES)}")
             try:
                 max_n = int(n) if n else default_max
             except ValueError:
                 raise LaunchError(f"--restart: bad restart count in {item!r} (restart:N, N >= 0)") from None
-            if max_n < 0:
-                raise LaunchError(f"--restart {item}: the restart count must be >= 0, got {max_n}")
+            try:
+                policy = RestartPolicy(action, max_n)
+            except LaunchError as exc:  # which item, with the policy's own words
+                raise LaunchError(f"--restart {item}: {exc}") from None
             if n and action != "restart":
                 raise LaunchError(f"--restart: a count only goes with 'restart', got {item!r}")
-            policy = RestartPolicy(action, max_n)
             for target in (known if name == "all" else [name]):
                 out[target] = policy
     return out
