@@ -303,6 +303,10 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
         print("  figures:")
         for name, value, unit in fig.as_rows():
             print(f"    {name:<40s} {_fmt(value):>14} {unit}")
+        unreached = fig.unreached()
+        if unreached:
+            print(f"  nan: not reached in this {sim_t:.1f} s run: {', '.join(unreached)}"
+                  + _longer_hint(s, sim_t, res.error is None))
     if a.out:
         print(f"  trajectory: {a.out}")
     if a.plot and len(res.traj["t_s"]) > 1:
@@ -317,6 +321,16 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
             return 1 if res.error is not None else 0
         print(f"  plot: {a.plot}")
     return 1 if res.error is not None else 0
+
+
+def _longer_hint(s, sim_t: float, completed: bool) -> str:
+    """For a completed maneuver run shorter than its catalogue duration: the duration that reaches its figures."""
+    from .maneuvers import maneuver_settings
+
+    default = maneuver_settings(s.name).duration
+    if not completed or sim_t >= default:
+        return ""
+    return f" (--duration {sim_t:g} is shorter than maneuver {s.name}'s own {default:g} s)"
 
 
 WELCH_TP_SEGMENT_PERIODS = 10.0

@@ -90,6 +90,22 @@ class Figures:
                 rows.append((md["label"], _convert(value, 1.0 / KNOT_M_S), "kt"))
         return rows
 
+    def unreached(self) -> list[str]:
+        """Labels of the figures that are NaN (a tuple: every item NaN): what the run did not reach, as a run too
+        short for a crossing or a steady phase (a turning circle of less than 360 deg has no steady turn)."""
+        def missing(value: Any) -> bool:
+            if isinstance(value, tuple):
+                return bool(value) and all(missing(v) for v in value)
+            return isinstance(value, (float, np.floating)) and math.isnan(value)
+
+        undefined = self._undefined()
+        return [f.metadata["label"] for f in fields(self)
+                if f.metadata and f.name not in undefined and missing(getattr(self, f.name))]
+
+    def _undefined(self) -> set[str]:
+        """Names of the fields that are NaN by definition in this run (no order given), not for want of time."""
+        return set()
+
     def row(self, name: str) -> tuple[str, Any, str]:
         """(label, value, unit) of one field in display units (deg, deg/s, kN)."""
         f = {f.name: f for f in fields(self)}.get(name)
@@ -598,6 +614,19 @@ class DepthHeadingFigures(Figures):
     phi_range_rad: tuple[float, float] = _fig("phi range", "rad")
     speed_range_m_s: tuple[float, float] = _fig("Speed U range", "m/s")
     max_abs_plane_rad: float = _fig("max |dX|", "rad")
+
+    def _undefined(self) -> set[str]:
+        """Without an order, its figures; with an order equal to the start, its step response (no change)."""
+        out: set[str] = set()
+        for ref, start, names in ((self.z_ref_m, self.initial_z_m,
+                                   ("z_ref_m", "z_error_m", "z_rise_time_s", "z_overshoot_m")),
+                                  (self.psi_ref_rad, self.initial_psi_rad,
+                                   ("psi_ref_rad", "psi_rise_time_s", "psi_overshoot_rad"))):
+            if not math.isfinite(ref):
+                out.update(names)
+            elif ref == start:
+                out.update(names[-2:])
+        return out
 
 
 def _step_response(t: np.ndarray, y: np.ndarray, ref: float) -> tuple[float, float]:

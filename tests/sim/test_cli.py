@@ -31,6 +31,20 @@ def test_short_turning_circle_writes_csv_plot_and_figures(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
 
 
+def test_figures_a_short_run_did_not_reach_are_said_with_the_maneuvers_own_duration():
+    p = run("maneuver", "hzz", "--duration", "60", "--quiet")
+    assert p.returncode == 0, p.stderr
+    said = [line for line in p.stdout.splitlines() if line.startswith("  nan:")]
+    assert said == ["  nan: not reached in this 60.0 s run: Second overshoot, First full period, Settled period "
+                    "(last) (--duration 60 is shorter than maneuver hzz's own 400 s)"]
+    # an order equal to the start asks for no step response: its NaN figures are not missed ones
+    p = run("maneuver", "depth-heading", "--depth-ref", "20", "--heading-ref-deg", "0", "--duration", "20",
+            "--quiet")
+    assert p.returncode == 0, p.stderr
+    assert re.search(r"Time to 90 % of the depth change +nan s", p.stdout)
+    assert not [line for line in p.stdout.splitlines() if line.startswith("  nan:")], p.stdout
+
+
 @pytest.mark.parametrize("args,needle", [
     (["maneuver", "zigzag"], "invalid choice"),
     (["maneuver", "hzz", "--sea-state", "9"], "sea state"),

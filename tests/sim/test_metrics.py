@@ -203,6 +203,29 @@ def test_short_turn_leaves_steady_figures_nan():
     f = turning_circle_figures(circle_traj(turns=0.6), length_m=70.2)
     assert f.tactical_diameter_m == pytest.approx(200.0, abs=1e-3)
     assert math.isnan(f.time_360_s) and math.isnan(f.steady_radius_m)
+    unreached = f.unreached()   # the figures past 216 deg, and the steady turn (a tuple of NaN is one of them)
+    assert "Time to 360 deg" in unreached and "Steady window (last 360 deg)" in unreached
+    assert "Steady planes dX1..dX5" in unreached
+    assert "Tactical diameter (180 deg)" not in unreached and "Peak roll phi" not in unreached
+    assert turning_circle_figures(circle_traj(turns=2.2), length_m=70.2).unreached() == ["Steady planes dX1..dX5",
+                                                                                        "Steady propeller n",
+                                                                                        "Steady thrust (open water)",
+                                                                                        "Steady torque"]
+
+
+def test_unreached_leaves_out_what_no_order_asked_for():
+    t = np.arange(0.0, 60.0, 0.1)
+    traj = {"t_s": t, "z_m": np.full(t.size, -20.0), "U_m_s": np.full(t.size, 5.0), "psi_deg": 0.5 * t,
+            "theta_deg": np.zeros(t.size), "phi_deg": np.zeros(t.size),
+            **{c: np.full(t.size, 3.0) for c in metrics.PLANE_COLUMNS}}
+    held = metrics.depth_heading_figures(traj, z_ref_m=-20.0, psi_ref_rad=math.radians(20.0))
+    assert math.isnan(held.z_rise_time_s)           # no depth change ordered: no rise time, and none missed
+    assert held.psi_rise_time_s == pytest.approx(36.0, abs=0.1)
+    assert held.unreached() == []
+    short = metrics.depth_heading_figures(traj, z_ref_m=-30.0, psi_ref_rad=math.radians(40.0))
+    assert short.unreached() == ["Time to 90 % of the depth change", "Time to 90 % of the heading change"]
+    no_order = metrics.depth_heading_figures(traj)
+    assert no_order.unreached() == []
 
 
 def test_synthetic_zigzag_from_angle_crossings():
