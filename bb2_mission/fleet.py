@@ -13,7 +13,8 @@ Fleet file (YAML; ``boats`` required, unknown keys are an error)::
 
 A boat's name is its ROS namespace (``/boat1``: its nodes, ``/boat1/bb2/odom``, ``/boat1/clock``, frames
 ``boat1/base_link``), so it is letters, digits and ``_``, starting with a letter.  Each boat's mission is loaded and
-checked when the fleet is (:func:`load_fleet`): a bad boat is an error naming the boat.  Files named inside a
+checked when the fleet is (:func:`load_fleet`), its start too (above the surface, inside the sea floor:
+:func:`bb2_mission.components.check_initial_state`): a bad boat is an error naming the boat.  Files named inside a
 boat's changes (a path or terrain file) are relative to the fleet file.  :meth:`Fleet.write_missions` writes every
 boat's mission as a mission file of its own (``extends`` the one it starts from), what the graph's nodes read.
 """
@@ -183,11 +184,21 @@ def load_fleet(file: str | Path) -> Fleet:
 def _load_boat(name: str, base: Path, changes: dict[str, Any], fleet_file: Path) -> Mission:
     """The boat's mission as the nodes will load it (its mission document, written beside nothing: loaded from a
     temporary file so ``extends`` and the files resolve exactly as they will)."""
+    from bb2_mission.components import check_initial_state
+
     if not changes:
-        return load_mission(base)
+        m = load_mission(base)
+        check_initial_state(m)
+        return m
     import tempfile
 
     with tempfile.TemporaryDirectory(prefix="bb2_fleet_") as tmp:
         t = Path(tmp) / f"{name}.yaml"
         t.write_text(yaml.safe_dump(_mission_document(base, changes, fleet_file.parent), sort_keys=False))
-        return load_mission(t)
+        try:
+            m = load_mission(t)
+            check_initial_state(m)   # a start above the surface or in the sea floor: refused before any boat flies
+        except MissionError as exc:  # the temporary file is no name for the user: the boat's changes are
+            raise MissionError(str(exc).replace(f"{t}: ", f"its mission ({base.name} with the boat's changes): ")
+                               .replace(str(t), f"its mission ({base.name} with the boat's changes)")) from None
+        return m

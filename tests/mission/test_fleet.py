@@ -51,6 +51,13 @@ def test_a_boat_of_its_own_names_files_relative_to_the_fleet_file(tmp_path):
     # the fleet's bag directory is named for it: ../ wrote the bag outside --bag-dir
     ("name: ../../escape\nboats: {b1: straight}\n", r"bad.yaml: name must be a plain name .*got '../../escape'"),
     ("name: 1e3\nboats: {b1: straight}\n", r"name must be a text, got 1000.0 \(YAML read a float: put the name in"),
+    # a boat's start is checked with its mission (bb2-launch started the other boats and failed this one, exit 1),
+    # and said of the boat's mission, not of the temporary file it was loaded from
+    ("boats: {b1: straight, b2: {mission: straight, initial: {offset_m: [0.0, 0.0, 1.0e4]}}}\n",
+     r"^\S*bad.yaml: boat 'b2': its mission \(straight.yaml with the boat's changes\): the initial CG z = 9985.00 m "
+     r"\(depth -9985.00 m\) puts the sail top 9996.40 m above the calm surface"),
+    ("boats: {b1: {mission: straight, duration_s: -5}}\n",
+     r"^\S*bad.yaml: boat 'b1': its mission \(straight.yaml with the boat's changes\): duration_s must be > 0 s"),
 ])
 def test_a_bad_fleet_file_is_refused_naming_the_boat(tmp_path, text, why):
     f = tmp_path / "bad.yaml"

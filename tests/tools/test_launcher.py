@@ -756,6 +756,20 @@ def test_a_shipped_mission_or_fleet_is_flown_by_its_name_and_a_misspelt_one_is_n
                           "'canyon'?); shipped missions and fleets: canyon, ") and "canyon_pair" in err, err
 
 
+def test_a_fleet_with_a_boat_that_cannot_start_is_refused_before_any_boat_flies(tmp_path, capsys):
+    """A boat above the surface: bb2-launch started the fleet, the other boats flew, and this boat's own launcher
+    refused it (the fleet exited 1, 'b2 failed'); it is bad input, refused up front (exit 2), no run directory."""
+    fleet = tmp_path / "f.yaml"
+    fleet.write_text("boats: {b1: straight, b2: {mission: straight, initial: {offset_m: [0.0, 0.0, 1.0e4]}}}\n")
+    from bb2_tools.fleet_launcher import run_fleet
+
+    assert run_fleet(L.parse_args([str(fleet), "--bag-dir", str(tmp_path / "bags")])) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"bb2-launch: error: {fleet}: boat 'b2': its mission (straight.yaml with the boat's "
+                          "changes): the initial CG z = 9985.00 m") and err.count("\n") == 1, err
+    assert not (tmp_path / "bags").exists()
+
+
 def test_without_leaves_the_nodes_out_of_the_graph_and_of_a_composed_process(tmp_path):
     mission = REPO / "missions" / "straight.yaml"
     names = [s.name for s in L.graph_specs(mission, tmp_path / "run", without=("l1_autopilot", "mixer"))]
