@@ -93,13 +93,18 @@ class Figures:
     def unreached(self) -> list[str]:
         """Labels of the figures that are NaN (a tuple: every item NaN): what the run did not reach, as a run too
         short for a crossing or a steady phase (a turning circle of less than 360 deg has no steady turn)."""
+        names = set(self.unreached_fields())
+        return [f.metadata["label"] for f in fields(self) if f.name in names]
+
+    def unreached_fields(self) -> list[str]:
+        """Field names of :meth:`unreached`, in order."""
         def missing(value: Any) -> bool:
             if isinstance(value, tuple):
                 return bool(value) and all(missing(v) for v in value)
             return isinstance(value, (float, np.floating)) and math.isnan(value)
 
         undefined = self._undefined()
-        return [f.metadata["label"] for f in fields(self)
+        return [f.name for f in fields(self)
                 if f.metadata and f.name not in undefined and missing(getattr(self, f.name))]
 
     def _undefined(self) -> set[str]:

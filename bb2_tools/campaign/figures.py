@@ -154,6 +154,12 @@ def mission_values(summary: Any, names: tuple[str, ...]) -> dict[str, Any]:
     return {n: _value(getattr(summary, cat[n][0]), cat[n][1], cat[n][2]) for n in names}
 
 
+def unreached_values(maneuver: str, figures: Any, names: tuple[str, ...]) -> list[str]:
+    """The collected names whose figure the run did not reach (:meth:`bb2_sim.metrics.Figures.unreached`)."""
+    cat, missed = _maneuver_catalogue(maneuver), set(figures.unreached_fields())
+    return [n for n in names if cat[n][0] in missed]
+
+
 def maneuver_values(maneuver: str, figures: Any, names: tuple[str, ...]) -> dict[str, Any]:
     cat = _maneuver_catalogue(maneuver)
     if figures is None:

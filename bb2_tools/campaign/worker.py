@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from bb2_tools.campaign.errors import SpecError
-from bb2_tools.campaign.figures import END_STATUS, maneuver_values, mission_values
+from bb2_tools.campaign.figures import END_STATUS, maneuver_values, mission_values, unreached_values
 from bb2_tools.campaign.spec import CampaignSpec, column_value
 
 __all__ = ["STATUSES", "run_task", "run_tasks", "run_one", "probe", "build_mission", "maneuver_settings_of",
@@ -129,6 +129,9 @@ def _maneuver_outcome(spec: CampaignSpec, s: Any, res: Any) -> tuple[str, str, d
         if status == "ok":
             status = "error"
         message = _one_line((message + "; " if message else "") + f"figures: {type(e).__name__}: {e}")
+    if status == "ok" and fig is not None and (missed := unreached_values(str(spec.maneuver), fig, spec.collect)):
+        t_end = float(res.traj["t_s"][-1])   # (the empty cells of an ok row: a run too short for them, said)
+        message = f"not reached in this {t_end:g} s run: {', '.join(missed)}"
     return status, message, maneuver_values(str(spec.maneuver), fig, spec.collect)
 
 

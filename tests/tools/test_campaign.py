@@ -426,10 +426,15 @@ def test_maneuver_campaign_collects_the_printed_figures(tmp_path):
 
     spec = parse_spec({"maneuver": {"name": "turning-circle", "options": {"duration": 20}},
                        "vary": {"rudder_deg": [10, 20]},
-                       "collect": ["peak_roll_rad", "peak_roll_deg", "initial_speed_m_s"]})
+                       "collect": ["peak_roll_rad", "peak_roll_deg", "initial_speed_m_s", "time_90_s"]})
     row, res = run_one(spec, 1)
     assert row["status"] == "ok" and row["rudder_deg"] == 20 and res.settings.rudder_deg == 20
+    # an empty cell of an ok row is said: the run was too short for it (it was an empty cell, no word)
+    assert row["time_90_s"] is None and row["message"] == "not reached in this 20 s run: time_90_s", row
     assert math.isclose(row["peak_roll_deg"], math.degrees(row["peak_roll_rad"]), rel_tol=1e-15)
+    row, _ = run_one(parse_spec({"maneuver": {"name": "turning-circle", "options": {"duration": 20}},
+                                 "collect": ["peak_roll_rad"]}), 0)
+    assert row["status"] == "ok" and row["message"] == "", row
     shutil.rmtree(tmp_path, ignore_errors=True)
 
 
@@ -607,6 +612,7 @@ def test_maneuver_batches_give_the_table_of_runs_flown_one_by_one(maneuver_batch
     assert len(alone) == 32 and _comparable(_table(batched)) == alone
     status = [r["status"] for r in alone]
     assert status.count("ok") >= 16 and "diverged" in status, status
+    assert {r["message"] for r in alone if r["status"] == "ok"} == {"not reached in this 15 s run: time_90_s"}
     assert {r["sea_state"] for r in alone} == {0, 3, 5}
 
 
