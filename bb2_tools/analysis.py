@@ -479,6 +479,8 @@ def analyze(run: BagRun, *, mission: Any = None, maneuver: str | None = None,
             if maneuver_settings is not None or "maneuver" not in run.custom_data:
                 raise AnalysisError(f"maneuver {maneuver!r}: {exc}") from None
             warnings.append(f"maneuver figures of {maneuver!r} not computed: {exc}")
+        if man_figs is not None:
+            _say_unreached(maneuver, man_figs, man_traj, settings, warnings)
 
     # a maneuver bag has no mission end; a mission's run analysed with a maneuver's figures keeps its own
     end = RunEnd("") if maneuver and "maneuver" in run.custom_data else \
@@ -684,6 +686,26 @@ def _real_time_factor(run: BagRun) -> tuple[float, str]:
     except ValueError:
         pass
     return math.nan, "unknown"
+
+
+def _say_unreached(maneuver: str, figures: Any, traj: dict[str, np.ndarray], settings: dict[str, Any],
+                   warnings: list[str]) -> None:
+    """Warn of the maneuver figures that are n/a because the recording did not reach them (too short for a crossing
+    or a steady phase), apart from those n/a because the bag does not record their quantity (thrust, torque: no
+    contract topic), which are the figures that come out finite once those columns are filled."""
+    missed = figures.unreached_fields()
+    if not missed:
+        return
+    absent = [c for c, v in traj.items() if c != "t_s" and not np.isfinite(v).any()]
+    if absent:
+        from bb2_sim import metrics
+
+        filled = metrics.figures_for(maneuver, {**traj, **{c: np.zeros_like(traj[c]) for c in absent}}, **settings)
+        missed = [f for f in missed if f in filled.unreached_fields()]
+    if missed:
+        t_s = traj["t_s"]
+        warnings.append(f"maneuver figures of {maneuver!r} not reached in this {t_s[-1] - t_s[0]:.1f} s recording "
+                        f"(n/a): {', '.join(missed)}")
 
 
 def _maneuver_traj(run: BagRun) -> dict[str, np.ndarray]:

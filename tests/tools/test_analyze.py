@@ -584,3 +584,7 @@ def test_maneuver_figures_from_bag(tmp_path):
     files = an.write_outputs([a], tmp_path / "out")
     assert "maneuver" in files and "Maneuver figures" in files["report"].read_text()
     assert a.warnings and any("no /bb2/guidance/path_error" in w for w in a.warnings)
+    # n/a for want of time is said (the centre's drift needs a second turn); n/a for want of a topic is not "not
+    # reached" (thrust and torque: the bag records neither)
+    assert [w for w in a.warnings if "not reached" in w] == [
+        "maneuver figures of 'turning-circle' not reached in this 150.0 s recording (n/a): circle_centre_drift_m"]
