@@ -27,7 +27,8 @@ from bb2_sim.outputs import OutputError, claim_run_dir
 
 from bb2_tools.graph_monitor import domain_monitor
 from bb2_tools.launcher import (GRAPH_NODES, RECORDER_NODE_NAME, check_params_file, check_run_options, check_without,
-                                clean_after_killed, gap_lines, node_command, recorded_topics)
+                                clean_after_killed, gap_lines, launcher_parameters, node_command, params_overridden,
+                                recorded_topics)
 from bb2_tools.supervisor import LaunchError, ProcessSpec, RestartPolicy, Supervisor, exit_cause
 
 BOAT_STOP_GRACE_S = 60.0  # a boat's launcher stops its graph on SIGINT (its recorder-less end: seconds)
@@ -80,6 +81,9 @@ def run_fleet(args: argparse.Namespace) -> int:
         fleet = load_fleet(args.mission)
         if args.params is not None:
             check_params_file(args.params.resolve())
+            given = launcher_parameters(Path(), args.mode)
+            del given["*"]  # (each boat's mission: its own launcher checks it, and says the warnings)
+            params_overridden(args.params.resolve(), given)  # a node's own entry that would win: refused up front
         recorder = next(n for n in GRAPH_NODES if n.name == RECORDER_NODE_NAME)
         rec_base = node_command(recorder, args.runner)  # one clear error before anything starts
         if args.out is not None:

@@ -70,7 +70,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from bb2_sim.names import did_you_mean
 from bb2_sim.outputs import OutputError, claim_run_dir, run_cli
@@ -439,6 +439,76 @@ def check_params_file(path: Path, graph_params_file: Path = GRAPH_PARAMS_FILE) -
                               + ("no node of the graph" if name == "/**" else f"no {name}")
                               + did_you_mean(param, known[name])
                               + "; ROS would ignore it")
+
+
+def params_overridden(path: Path, given: Mapping[str, Mapping[str, tuple[Any, str, str]]],
+                      graph_params_file: Path = GRAPH_PARAMS_FILE) -> list[str]:
+    """The parameters that the params file ``path`` sets and the launcher sets otherwise (``given``: node name,
+    ``*`` for every node -> parameter -> (the launcher's value, the option or argument that sets it, how the user
+    chooses it: '' when the launcher alone does)).
+
+    * Under ``/**``: the launcher's value comes after the file's and wins, without a word from ROS: one warning
+      each, unless the file's value is the graph's default (a copy of the shipped file).
+    * Under a node's own name (``simulator:``, ``/boat1/simulator:``, ``/**/simulator:``): rcl applies a node's
+      own entry after every ``/**`` value, the launcher's ``-p`` included, so that node alone would take the
+      file's value (a simulator in real time beside controllers in lockstep, or flying another mission):
+      :class:`LaunchError` naming the way to choose it."""
+    data = _load_yaml_mapping(path, "params file")
+    defaults: Mapping[str, Any] = {}
+    if graph_params_file.is_file():
+        from bb2_sim.yaml_files import load as load_yaml
+
+        defaults = load_yaml(graph_params_file.read_text(encoding="utf-8"))["/**"]["ros__parameters"]
+    out: list[str] = []
+    for key, body in data.items():
+        name = "/**" if "*" in str(key).rsplit("/", 1)[-1] else str(key).rsplit("/", 1)[-1]
+        if name == "/**":
+            set_here = {p: v for node_values in given.values() for p, v in node_values.items()}
+        else:
+            set_here = {**given.get("*", {}), **given.get(name, {})}
+        for param, value in body["ros__parameters"].items():
+            if param not in set_here or _same_value(param, value, set_here[param][0]):
+                continue
+            launched, source, choose = set_here[param]
+            if name != "/**":
+                raise LaunchError(f"params file {path}: {key}: {param} {value!r} conflicts with {source}, which sets "
+                                  f"it to {launched!r} for the graph (a node's own entry would win over it for that "
+                                  f"node alone): " + (f"choose it with {choose}" if choose else "leave it out")
+                                  + " and remove it from the file")
+            if not (param in defaults and _same_value(param, value, defaults[param])):
+                out.append(f"params file {path}: {key}: {param} {value!r} is overridden by {source}")
+    return out
+
+
+def launcher_parameters(mission: Path, mode: str, arguments: Mapping[str, str] | None = None,
+                        stall_timeout_s: float | None = None) -> dict[str, dict[str, tuple[Any, str, str]]]:
+    """What the launcher sets for the graph that a params file may also set (:func:`params_overridden`):
+    ``bb2-launch``'s, or with ``arguments`` (the launch files' arguments, as given) theirs, the simulator's
+    ``stall_timeout_s`` included."""
+    if arguments is None:
+        by, said = "bb2-launch", {"mission_file": (f"the mission bb2-launch flies ({mission})", "the MISSION argument"),
+                                  "time_mode": (f"--mode {mode}", "--mode")}
+    else:
+        by = "the launch file"
+        said = {"mission_file": (f"launch argument mission:={arguments.get('mission', '')}", "mission:="),
+                "time_mode": (f"launch argument time_mode:={arguments['time_mode']}", "time_mode:="),
+                "stall_timeout_s": (f"launch argument stall_timeout:={arguments['stall_timeout']}", "stall_timeout:=")}
+    sim_time = (True, f"{by} (the graph runs on the simulator's clock)", "")
+    simulator = {"time_mode": (mode, *said["time_mode"]),
+                 "use_sim_time": (False, f"{by} (the simulator is the graph's clock)", "")}
+    if stall_timeout_s is not None:
+        simulator["stall_timeout_s"] = (float(stall_timeout_s), *said["stall_timeout_s"])
+    return {"*": {"mission_file": (str(mission), *said["mission_file"])}, "simulator": simulator,
+            **{n.name: {"use_sim_time": sim_time} for n in GRAPH_NODES if n.name not in ("simulator", "recorder")}}
+
+
+def _same_value(param: str, a: Any, b: Any) -> bool:
+    """Equal as ROS parameters: numbers by value, a mission file by the file it names, the rest by text."""
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool) | isinstance(b, bool):
+        return float(a) == float(b)
+    if param == "mission_file" and str(a).strip() and str(b).strip():
+        return Path(str(a)).expanduser().resolve() == Path(str(b)).expanduser().resolve()
+    return str(a) == str(b)
 
 
 BACKGROUND_NICE = 10
@@ -969,8 +1039,10 @@ def _main(argv: Sequence[str] | None) -> int:
         check_restart_policies(policies, groups)
         mission = args.mission.resolve()
         params = args.params.resolve() if args.params else None
+        overridden: list[str] = []
         if params is not None:
             check_params_file(params)
+            overridden = params_overridden(params, launcher_parameters(mission, args.mode))
         mission_warning = check_mission(mission)
         if args.foxglove is not None:
             check_foxglove_port(args.foxglove)
@@ -1006,8 +1078,9 @@ def _main(argv: Sequence[str] | None) -> int:
     echo = (lambda name, line: print(f"[{name}] {line}", file=sys.stderr, flush=True)) if args.echo else None
     print(f"[bb2-launch] mission {mission} | mode {args.mode} | ROS_DOMAIN_ID={monitor.domain_id} | "
           + (f"namespace /{namespace} | " if namespace else "") + f"run {run_dir}", file=sys.stderr, flush=True)
-    if mission_warning:
-        print(f"[bb2-launch] warning: {mission_warning}", file=sys.stderr, flush=True)
+    for warning in (*overridden, mission_warning):
+        if warning:
+            print(f"[bb2-launch] warning: {warning}", file=sys.stderr, flush=True)
     if without:
         from bb2_msgs_py.contract import node_interface
 

@@ -178,7 +178,7 @@ def test_without_and_no_node_of_the_users_the_run_stops_as_stalled_and_the_launc
 
     env, install, tmp = ws
     (tmp / "quick_failsafe.yaml").write_text("/**:\n  ros__parameters:\n    startup_timeout_s: 1.0\n"
-                                             "    lockstep_timeout_s: 0.2\n")
+                                             "    lockstep_timeout_s: 0.2\n    stall_timeout_s: 30.0\n")
     domain = claimed_domain()
     p = launch(ws, domain, "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "without:=mixer",
                "stall_timeout:=2", f"params_file:={tmp / 'quick_failsafe.yaml'}", f"bag:={tmp / 'stalled'}")
@@ -186,6 +186,9 @@ def test_without_and_no_node_of_the_users_the_run_stops_as_stalled_and_the_launc
     assert p.returncode == 1, out[-3000:]
     assert "stalled: stepped on the failsafe for 2 s of wall time" in out and "stall_timeout_s 2)" in out, out[-3000:]
     assert "the simulator exited with code 1: the run failed" in out, out[-3000:]
+    # the params file's own stall_timeout_s, which the launch argument overrides, is said
+    assert (f"[bb2_bringup] warning: params file {tmp / 'quick_failsafe.yaml'}: /**: stall_timeout_s 30.0 is "
+            "overridden by launch argument stall_timeout:=2") in out, out[-3000:]
     end = analyze(read_bag(tmp / "stalled")).figures.end
     assert end.reason == "stalled" and "stall_timeout_s 2" in end.message, end
     assert 0 < end.t_s < 2.5, end  # it stopped before the mission's end
@@ -286,6 +289,8 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
     env, install, tmp = ws
     (tmp / "typo.yaml").write_text("/**:\n  ros__parameters:\n    rate_hzz: 5.0\n")
     (tmp / "node_typo.yaml").write_text("/boat1/simulatr:\n  ros__parameters:\n    rate_hz: 5.0\n")
+    (tmp / "own_mode.yaml").write_text("simulator:\n  ros__parameters:\n    time_mode: realtime\n")
+    (tmp / "own_stall.yaml").write_text("/boat1/simulator:\n  ros__parameters:\n    stall_timeout_s: 5.0\n")
     (tmp / "bad_mission.yaml").write_text("extends: canyon\nduration_s: -5\n")
     domain = claimed_domain()
     import socket
@@ -302,6 +307,14 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("bb2_graph.launch.py", [f"params_file:={tmp / 'typo.yaml'}"],
              "parameter 'rate_hzz' is declared by no node of the graph (did you mean 'rate_hz'?)"),
             ("bb2_graph.launch.py", [f"params_file:={tmp / 'missing.yaml'}"], "missing.yaml does not exist"),
+            # a node's own entry wins over the launch arguments for that node alone (the simulator in real time
+            # beside controllers in lockstep; the stall timeout not the one asked for)
+            ("bb2_graph.launch.py", [f"params_file:={tmp / 'own_mode.yaml'}"],
+             "simulator: time_mode 'realtime' conflicts with launch argument time_mode:=lockstep, which sets it to "
+             "'lockstep' for the graph (a node's own entry would win over it for that node alone): choose it with "
+             "time_mode:= and remove it from the file"),
+            ("fleet.launch.py", [f"params_file:={tmp / 'own_stall.yaml'}"],
+             "/boat1/simulator: stall_timeout_s 5.0 conflicts with launch argument stall_timeout:=60"),
             ("bb2_graph.launch.py", [f"mission:={tmp / 'bad_mission.yaml'}"], "duration_s must be > 0 s, got -5.0"),
             ("fleet.launch.py", [f"params_file:={tmp / 'node_typo.yaml'}"],
              "'/boat1/simulatr' is no node of the graph (did you mean 'simulator'?)"),

@@ -311,6 +311,48 @@ def test_the_graphs_own_params_files_and_ros_own_parameters_pass(tmp_path):
     L.check_params_file(ok)
 
 
+def test_a_params_file_value_the_launcher_sets_otherwise_is_named_or_refused(tmp_path, monkeypatch):
+    """ROS takes the launcher's ``-p time_mode:=lockstep`` over a params file's ``/**`` ``time_mode: realtime``
+    without a word: a warning names the option that wins.  A node's own entry wins over the launcher's ``-p`` (rcl
+    applies it after every ``/**`` value: a simulator in real time beside controllers in lockstep): refused.  A
+    value equal to the graph's default (a copy of the shipped file) or to the launcher's is neither."""
+    monkeypatch.chdir(tmp_path)
+    canyon = REPO / "missions" / "canyon.yaml"
+    given = L.launcher_parameters(canyon, "lockstep")
+    assert L.params_overridden(REPO / "config" / "bb2_graph.yaml", given) == []
+    mine = tmp_path / "mine.yaml"
+    mine.write_text("/**:\n  ros__parameters:\n    time_mode: realtime\n    stall_timeout_s: 5.0\n"
+                    "    mission_file: missions/circle.yaml\n    rate_hz: 10.0\n")
+    assert L.params_overridden(mine, given) == [
+        f"params file {mine}: /**: time_mode 'realtime' is overridden by --mode lockstep",
+        f"params file {mine}: /**: mission_file 'missions/circle.yaml' is overridden by the mission bb2-launch flies "
+        f"({canyon})"]
+    launch_given = L.launcher_parameters(canyon, "lockstep", {"mission": "canyon", "time_mode": "lockstep",
+                                                              "stall_timeout": "60"}, 60.0)
+    assert L.params_overridden(mine, launch_given)[1] == (f"params file {mine}: /**: stall_timeout_s 5.0 is "
+                                                          "overridden by launch argument stall_timeout:=60")
+    (tmp_path / "missions").symlink_to(REPO / "missions")
+    for entry, why in (("/boat1/simulator:\n  ros__parameters:\n    time_mode: realtime\n",
+                        "/boat1/simulator: time_mode 'realtime' conflicts with --mode lockstep, which sets it to "
+                        "'lockstep' for the graph (a node's own entry would win over it for that node alone): choose "
+                        "it with --mode and remove it from the file"),
+                       ("simulator:\n  ros__parameters:\n    mission_file: missions/circle.yaml\n",
+                        "simulator: mission_file 'missions/circle.yaml' conflicts with the mission bb2-launch flies"),
+                       ("/**/mixer:\n  ros__parameters:\n    use_sim_time: false\n",
+                        "/**/mixer: use_sim_time False conflicts with bb2-launch (the graph runs on the simulator's "
+                        "clock), which sets it to True for the graph (a node's own entry would win over it for that "
+                        "node alone): leave it out and remove it from the file")):
+        mine.write_text(entry)
+        with pytest.raises(L.LaunchError) as e:
+            L.params_overridden(mine, given)
+        assert str(e.value).startswith(f"params file {mine}: {why}"), str(e.value)
+    # a node's own entry with the launcher's value (the same mission file named otherwise) is no conflict
+    mine.write_text("simulator:\n  ros__parameters:\n    mission_file: missions/canyon.yaml\n"
+                    "    time_mode: lockstep\n    use_sim_time: false\nplanner:\n  ros__parameters:\n"
+                    "    use_sim_time: true\n")
+    assert L.params_overridden(mine, given) == []
+
+
 def test_bad_input_exits_2_with_one_clear_message(tmp_path, capsys):
     assert L.main([str(tmp_path / "missing.yaml")]) == 2
     assert "does not exist" in capsys.readouterr().err
@@ -562,11 +604,14 @@ def test_a_node_exiting_2_before_the_first_step_is_bad_input_after_it_a_failure(
 @pytest.mark.ros
 def test_bb2_launch_with_a_parameter_a_node_refuses_exits_2_with_the_nodes_line(tmp_path, bb2_graph_available):
     params = tmp_path / "params.yaml"
-    params.write_text("/**:\n  ros__parameters:\n    rate_hz: fast\n")
+    params.write_text("/**:\n  ros__parameters:\n    rate_hz: fast\n    time_mode: realtime\n")
     p = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(_short_mission(tmp_path, 20.0)),
                         "--params", str(params), "--out", str(tmp_path / "run"), "--timeout", "100"],
                        cwd=tmp_path, env=ros_env(), capture_output=True, text=True, timeout=160)
     assert p.returncode == 2, p.stderr
+    # (and the mode it sets, which --mode overrides, is said before the graph starts)
+    assert (f"[bb2-launch] warning: params file {params}: /**: time_mode 'realtime' is overridden by --mode "
+            "lockstep\n") in p.stderr.split("node 'simulator' ended")[0], p.stderr
     assert "simulator: error: parameter 'rate_hz'" in p.stderr.split("node 'simulator' ended (exit code 2)")[1]
     assert re.search(r"node 'simulator' failed \(exit code 2\): sim time --, .*exit code 2$", p.stderr, re.M), \
         p.stderr

@@ -23,7 +23,8 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
   stall_timeout  wall s (default 60; 0 = never) of stepping on the failsafe without a break -- no controller
                answers: your node not started, or on another domain -- after which the simulator stops the run as
                stalled and the launch fails (bb2-launch --stall-timeout), rather than crawl on neutral planes;
-               it sets the simulator's stall_timeout_s, over a params file's (as time_mode sets time_mode).
+               it sets the simulator's stall_timeout_s, over a params file's /** value, with a warning (as
+               time_mode sets time_mode); a node's own entry that sets it otherwise is refused (it would win).
 
 It starts what ``bb2-launch`` starts — simulator, planner, path_following, l1_autopilot, mixer and (record) the
 recorder, each its own process, the recorder and the planner at nice +10 — with the same parameters: the
@@ -66,7 +67,8 @@ from bb2_sim.outputs import OutputError, claim_run_dir
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
 from bb2_tools.dds_shm import clean_after_kill
 from bb2_tools.launcher import (DEFAULT_STALL_TIMEOUT_S, check_foxglove_port, check_mission, check_params_file,
-                                check_stall_timeout, check_without)
+                                check_stall_timeout, check_without, launcher_parameters,
+                                params_overridden)
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
@@ -119,6 +121,19 @@ def checked_params_file(value: str) -> str:
     path = Path(value).expanduser().resolve()
     check_params_file(path, SHARE / "config" / "bb2_graph.yaml")
     return str(path)
+
+
+def overridden_by_arguments(params_file: str, a: dict, stall_timeout_s: float, mission: Path | None = None) -> list:
+    """A warning (LogInfo) for each parameter the params file sets under ``/**`` (other than its default) that a
+    launch argument sets otherwise (the argument wins without a word, as in bb2-launch); a node's own entry that
+    does is refused (it would win for that node alone): :func:`bb2_tools.launcher.params_overridden`.  ``mission``:
+    None for a fleet (each boat's own)."""
+    if not params_file:
+        return []
+    given = launcher_parameters(mission or Path(), a["time_mode"], a, stall_timeout_s)
+    if mission is None:
+        del given["*"]
+    return [LogInfo(msg=f"[bb2_bringup] warning: {w}") for w in params_overridden(Path(params_file), given)]
 
 
 def flag(value: str, name: str) -> bool:
@@ -343,6 +358,7 @@ def _graph(context):
     check_time_mode(a["time_mode"])
     ns = check_namespace(a["namespace"], "launch argument namespace")  # (launch_ros refuses it later, in its words)
     compose = flag(a["compose"], "compose")
+    overridden = overridden_by_arguments(params_file, a, stall, mission)
     # claimed last, every other check passed: a refused launch leaves no directory behind
     # (a nested namespace as bb2-launch names it: one directory, boat_a_b)
     stem = f"{mission.stem}_{time.strftime('%Y%m%d_%H%M%S')}" + (f"_{ns.replace('/', '_')}" if ns else "")
@@ -357,7 +373,7 @@ def _graph(context):
                        + (f" | without {', '.join(without)} (your nodes in their place)" if without else "")
                        + (f" | bag {bag}" if bag else " | not recorded")
                        + (f" | foxglove ws://127.0.0.1:{fox_port}" if fox else ""))
-    return [*([LogInfo(msg=f"[bb2_bringup] warning: {warning}")] if warning else []), said, *acts]
+    return [*overridden, *([LogInfo(msg=f"[bb2_bringup] warning: {warning}")] if warning else []), said, *acts]
 
 
 def generate_launch_description():

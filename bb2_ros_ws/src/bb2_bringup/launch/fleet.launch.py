@@ -78,6 +78,7 @@ def _fleet(context):
     params_file = graph.checked_params_file(a["params_file"])
     without = graph.check_without(a["without"], "launch argument without")
     stall = graph.check_stall_timeout(a["stall_timeout"], "launch argument stall_timeout")
+    overridden = graph.overridden_by_arguments(params_file, a, stall)
     # the bag directory, claimed as bb2-launch claims its run directory (fleet_<date>, _2 ... when taken)
     root = graph.claim_bag("", a["bag_dir"], f"{name}_{time.strftime('%Y%m%d_%H%M%S')}") if record else None
     # not recorded, a fleet file's missions go to a folder of their own, removed as the launch ends
@@ -88,7 +89,7 @@ def _fleet(context):
             boats, missions = list(files), [str(f) for f in files.values()]
         checked = [(ns, graph.mission_file(m)) for ns, m in zip(boats, missions)]
         warnings = [(ns, graph.check_mission(mission)) for ns, mission in checked]  # every boat's, before any starts
-        actions, sims = [], []
+        actions, sims = overridden, []
         ended: set[int] = set()
         if record:
             recorder = graph.fleet_recorder(root, boats)
