@@ -43,14 +43,17 @@ def _summary(figures_json: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="bb2-main", description=__doc__.splitlines()[0])
-    ap.add_argument("--mission", default=str(REPO / "missions" / "canyon.yaml"))
-    ap.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
-    ap.add_argument("--bag-dir", type=Path, default=REPO / "bags")
+    ap = argparse.ArgumentParser(prog="python -m bb2_tools.main_job", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--mission", default=str(REPO / "missions" / "canyon.yaml"),
+                    help="mission file, or a shipped mission's name (default: the canyon)")
+    ap.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep", help="the graph's time mode")
+    ap.add_argument("--bag-dir", type=Path, default=REPO / "bags", help="where the run's bag goes (default: bags/)")
     ap.add_argument("--timeout", type=float, default=3600.0, help="wall-clock limit of the flight (s)")
     a = ap.parse_args(argv)
 
-    mission = Path(a.mission)
+    # the launcher and the analysis run from the repository: a file named from here is named absolutely
+    mission = Path(a.mission).resolve() if Path(a.mission).exists() else Path(a.mission)
+    a.bag_dir = a.bag_dir.resolve()
     print(f"== BB2 Sim main job: {mission.name} through the ROS 2 graph ({a.mode}), recorded to MCAP", flush=True)
     t0 = time.time()
     launch = [sys.executable, "-m", "bb2_tools.launcher", str(mission), "--mode", a.mode,
