@@ -70,8 +70,8 @@ other one is read-only (fixed at start-up; the set is refused):
 ``stall_timeout_s``    wall s of stepping on the failsafe without a break (every controller silent: in lockstep
                        one step per ``lockstep_timeout_s``) after which the run stops as stalled (status
                        ``stalled``, ``error`` saying what was silent; exit 1 with ``exit_at_end``) rather than
-                       crawl on neutral planes; 0 = never (default: ``bb2-launch`` watches this itself,
-                       ``--stall-timeout``; the launch files set it from their ``stall_timeout`` argument).
+                       crawl on neutral planes; 0 = never (the default; ``bb2-launch`` sets it from ``--stall-timeout``,
+                       the launch files from their ``stall_timeout`` argument).
 ``trajectory_csv``     if set, every state ``t, x12`` (native, ``%.17g``) is written to this CSV.
 ``sea_file``           "" = the mission's sea and current; else a YAML/JSON file whose ``sea:`` and/or
                        ``current:`` blocks (the mission file's keys, :mod:`bb2_sim.environment`) replace the
@@ -262,7 +262,7 @@ class Simulator(Node):
                      "for the steps to come (a finished run stays finished)", self._set_duration, None)
         self.stall_timeout_s = L(
             "stall_timeout_s", 0.0, "wall s of stepping on the failsafe without a break after which the run stops "
-            "as stalled (status stalled; exit 1 with exit_at_end); 0 = never (bb2-launch watches it itself)",
+            "as stalled (status stalled; exit 1 with exit_at_end); 0 = never (bb2-launch: --stall-timeout)",
             lambda v: setattr(self, "stall_timeout_s", v), positive("stall_timeout_s", zero=True))
         self.exit_at_end = L("exit_at_end", False, "exit 0 when the duration is reached (set true on a finished "
                              "run: it exits now)", self._set_exit_at_end, None)

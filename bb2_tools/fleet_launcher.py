@@ -81,7 +81,7 @@ def run_fleet(args: argparse.Namespace) -> int:
         fleet = load_fleet(args.mission)
         if args.params is not None:
             check_params_file(args.params.resolve())
-            given = launcher_parameters(Path(), args.mode)
+            given = launcher_parameters(Path(), args.mode, stall_timeout_s=args.stall_timeout)
             del given["*"]  # (each boat's mission: its own launcher checks it, and says the warnings)
             params_overridden(args.params.resolve(), given)  # a node's own entry that would win: refused up front
         recorder = next(n for n in GRAPH_NODES if n.name == RECORDER_NODE_NAME)

@@ -296,7 +296,8 @@ def run_graph(sup: Supervisor, monitor: GraphMonitor | None, *, first: Sequence[
                                     f"{now - last_sim[1]:.0f} s of wall time (--stall-timeout {stall_timeout_s:g})"), 1
             if monitor is not None:
                 failsafe_since = None if monitor.failsafe is None else failsafe_since or now
-            if not reason and stall_timeout_s and failsafe_since is not None and now - failsafe_since > stall_timeout_s:
+            if (not reason and stall_timeout_s and failsafe_since is not None
+                    and now - failsafe_since > stall_timeout_s + FAILSAFE_BACKSTOP_S):
                 # the run goes on, but as no run: in lockstep one step a second (lockstep_timeout_s) on held or
                 # neutral planes, in real time the boat flying on its failsafe alone
                 reason, code = (f"{FAILSAFE_STALL} for {now - failsafe_since:.0f} s of wall time "
@@ -483,11 +484,13 @@ def params_overridden(path: Path, given: Mapping[str, Mapping[str, tuple[Any, st
 def launcher_parameters(mission: Path, mode: str, arguments: Mapping[str, str] | None = None,
                         stall_timeout_s: float | None = None) -> dict[str, dict[str, tuple[Any, str, str]]]:
     """What the launcher sets for the graph that a params file may also set (:func:`params_overridden`):
-    ``bb2-launch``'s, or with ``arguments`` (the launch files' arguments, as given) theirs, the simulator's
-    ``stall_timeout_s`` included."""
+    ``bb2-launch``'s, or with ``arguments`` (the launch files' arguments, as given) theirs; ``stall_timeout_s``
+    (> 0: set; None or 0: not) the simulator's."""
     if arguments is None:
         by, said = "bb2-launch", {"mission_file": (f"the mission bb2-launch flies ({mission})", "the MISSION argument"),
-                                  "time_mode": (f"--mode {mode}", "--mode")}
+                                  "time_mode": (f"--mode {mode}", "--mode"),
+                                  "stall_timeout_s": (f"--stall-timeout {stall_timeout_s:g}" if stall_timeout_s else "",
+                                                      "--stall-timeout")}
     else:
         by = "the launch file"
         said = {"mission_file": (f"launch argument mission:={arguments.get('mission', '')}", "mission:="),
@@ -496,7 +499,7 @@ def launcher_parameters(mission: Path, mode: str, arguments: Mapping[str, str] |
     sim_time = (True, f"{by} (the graph runs on the simulator's clock)", "")
     simulator = {"time_mode": (mode, *said["time_mode"]),
                  "use_sim_time": (False, f"{by} (the simulator is the graph's clock)", "")}
-    if stall_timeout_s is not None:
+    if stall_timeout_s is not None and (arguments is not None or stall_timeout_s > 0):  # (the launch files: 0 too)
         simulator["stall_timeout_s"] = (float(stall_timeout_s), *said["stall_timeout_s"])
     return {"*": {"mission_file": (str(mission), *said["mission_file"])}, "simulator": simulator,
             **{n.name: {"use_sim_time": sim_time} for n in GRAPH_NODES if n.name not in ("simulator", "recorder")}}
@@ -621,7 +624,8 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 policies: Mapping[str, RestartPolicy] | None = None,
                 monitor: GraphMonitor | None = None,
                 groups: Sequence[Sequence[str]] = (), foxglove_port: int | None = None,
-                namespace: str = "", own_recorder: bool = True, without: Sequence[str] = ()) -> list[ProcessSpec]:
+                namespace: str = "", own_recorder: bool = True, without: Sequence[str] = (),
+                stall_timeout_s: float = 0.0) -> list[ProcessSpec]:
     """The process specs of the BB2 graph for one mission, in start order.
 
     The planner and the controllers, and in lockstep the simulator, are ``early``: :func:`run_graph`
@@ -641,7 +645,9 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     ``--domain-id`` fly side by side without crosstalk.  ``record`` without ``own_recorder``: the boat is recorded by
     a recorder started elsewhere (a fleet's, :mod:`bb2_tools.fleet_launcher`), which the simulator waits for as for
     its own (its readers, its acknowledgements on the boat's ``bb2/recorder/ack``).  ``without``: nodes not started
-    (:func:`check_without`), a user's own in their place.
+    (:func:`check_without`), a user's own in their place.  ``stall_timeout_s`` (> 0): the simulator's own, which
+    stops the run as stalled after stepping on its failsafe that long (its status says why, in the bag); 0: not
+    set (a params file's, else never).
     """
     from bb2_msgs_py.contract import boat_topic
 
@@ -659,6 +665,8 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
         ros += ["-p", f"mission_file:={mission}"]
         if name == "simulator":
             ros += ["-p", f"time_mode:={mode}"]
+            if stall_timeout_s > 0:  # the run stops as stalled, said by the simulator (status, bag, analysis)
+                ros += ["-p", f"stall_timeout_s:={float(stall_timeout_s)}"]
             if record:  # the bag misses nothing from the first step on (its readers matched first)
                 ros += ["-p", "wait_for_readers:=true"]
             if mode == "lockstep" and record:  # nor when the recorder stalls: the graph waits for it
@@ -873,6 +881,12 @@ FROZEN_CHECK_S = 0.5
 """How often (wall s) run_graph looks for stopped node processes (:meth:`Supervisor.stopped`)."""
 
 FAILSAFE_STALL = "stalled: the simulator has stepped on its failsafe"
+SIMULATOR_STALL = "stalled: stepped on the failsafe"
+"""How the simulator's own stop on its failsafe (``stall_timeout_s``) begins its ``error``."""
+FAILSAFE_BACKSTOP_S = 5.0
+"""Wall seconds past ``--stall-timeout`` after which ``run_graph`` stops a graph stepping on its failsafe itself: the
+simulator, given the same timeout (:func:`graph_specs`), stops the run first and says why in its status (in the
+bag: ``bb2-analyze`` says ``end: stalled``); this is the watch for a simulator that did not."""
 DEFAULT_STALL_TIMEOUT_S = 60.0
 """Wall seconds without the sim time advancing after which ``bb2-launch`` stops the graph as stalled (the
 simulator's own lockstep timeout steps on held commands after 0.5 s by default, so a graph that lives never
@@ -1042,7 +1056,8 @@ def _main(argv: Sequence[str] | None) -> int:
         overridden: list[str] = []
         if params is not None:
             check_params_file(params)
-            overridden = params_overridden(params, launcher_parameters(mission, args.mode))
+            overridden = params_overridden(params, launcher_parameters(mission, args.mode,
+                                                                       stall_timeout_s=args.stall_timeout))
         mission_warning = check_mission(mission)
         if args.foxglove is not None:
             check_foxglove_port(args.foxglove)
@@ -1074,7 +1089,7 @@ def _main(argv: Sequence[str] | None) -> int:
     specs = graph_specs(mission, run_dir, mode=args.mode, params=params, record=not args.no_record,
                         runner=args.runner, policies=policies, monitor=monitor, groups=groups,
                         foxglove_port=args.foxglove, namespace=namespace, own_recorder=not args.external_recorder,
-                        without=without)
+                        without=without, stall_timeout_s=args.stall_timeout)
     echo = (lambda name, line: print(f"[{name}] {line}", file=sys.stderr, flush=True)) if args.echo else None
     print(f"[bb2-launch] mission {mission} | mode {args.mode} | ROS_DOMAIN_ID={monitor.domain_id} | "
           + (f"namespace /{namespace} | " if namespace else "") + f"run {run_dir}", file=sys.stderr, flush=True)
@@ -1117,7 +1132,7 @@ def _main(argv: Sequence[str] | None) -> int:
                                                    recorded_topics(namespace), namespace)
         except OSError as exc:
             counts_note = f"cannot write {bags[0] / PUBLICATION_COUNTS_FILE}: {exc}"
-    if without and result.reason.startswith(FAILSAFE_STALL):
+    if without and (result.reason.startswith(FAILSAFE_STALL) or SIMULATOR_STALL in result.reason):
         print(f"[bb2-launch] nothing answered in place of the {', '.join(without)} (--without): start your nodes on "
               f"ROS_DOMAIN_ID={monitor.domain_id}" + (f" in /{namespace}" if namespace else "") + " with the launch, "
               "or give --stall-timeout 0 to fly on the failsafe", file=sys.stderr)

@@ -879,19 +879,26 @@ def test_the_status_line_says_when_the_simulator_steps_on_its_failsafe(tmp_path,
     # (its planes neutral: none ever came; its propeller this step's, or held when the autopilot was late too)
     assert any("| FAILSAFE: lockstep timeout: neutral planes, " in ln for ln in lines), p.stderr[-3000:]
     # on a mission of 400 s the crawl went on for hours (one step per lockstep_timeout_s): --stall-timeout ends it,
-    # with what to do
+    # with what to do; the simulator stops the run itself (its status says why: the bag ends 'stalled', where
+    # bb2-launch's own stop left it 'stopped')
+    from bb2_tools.analysis import analyze
+    from bb2_tools.bag_run import read_bag
+
     long = _short_mission(tmp_path, 400.0)
     t0 = time.monotonic()
     p = subprocess.run([sys.executable, "-m", "bb2_tools.launcher", str(long), "--without", "mixer", "--params",
-                        str(params), "--stall-timeout", "3", "--no-record", "--timeout", "100", "--out",
+                        str(params), "--stall-timeout", "3", "--timeout", "100", "--out",
                         str(tmp_path / "crawl")], cwd=tmp_path, env=ros_env(), capture_output=True, text=True,
                        timeout=150)
     assert p.returncode == 1, p.stderr[-3000:]
-    said = re.search(r"stopping: stalled: the simulator has stepped on its failsafe for (\d+) s of wall time "
-                     r"\(lockstep timeout: neutral planes, [^;]*; --stall-timeout 3\)", p.stderr)
+    said = re.search(r"stopping: the simulator stopped: stalled: stepped on the failsafe for (\d+) s of wall time at "
+                     r"t = [0-9.]+ s \(lockstep timeout: neutral planes, [^;]*; stall_timeout_s 3\): is every "
+                     r"controller running", p.stderr)
     assert said and 3 <= int(said.group(1)) <= 10, p.stderr[-3000:]
     assert "nothing answered in place of the mixer (--without): start your nodes on ROS_DOMAIN_ID=" in p.stderr
     assert time.monotonic() - t0 < 90, p.stderr[-3000:]  # not the --timeout
+    end = analyze(read_bag(tmp_path / "crawl")).figures.end
+    assert end.reason == "stalled" and "stall_timeout_s 3" in end.message, end
 
 
 ROS_OWN_TOPICS = {"/rosout", "/parameter_events"}
