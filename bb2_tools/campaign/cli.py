@@ -73,6 +73,12 @@ def main(argv: list[str] | None = None) -> int:
         return _fail("--address goes with --engine ray")
     if a.graph and a.only is not None:
         return _fail("--graph goes with a campaign, not --only (fly one run through the graph with bb2-launch)")
+    if a.only is not None:  # one run, in this process, written to --out-run: a campaign's options are not read
+        given = [opt for opt, on in (("--out", a.out), ("--resume", a.resume), ("--workers", a.workers),
+                                     ("--batch", a.batch), ("--engine", a.engine != "local")) if on]
+        if given:
+            return _fail(f"{', '.join(given)} go{'es' if len(given) == 1 else ''} with a campaign, not --only "
+                         "(one run, flown here, written to --out-run)")
     from bb2_tools.campaign.spec import load_spec
     from bb2_tools.campaign.worker import campaign_warnings, probe
 

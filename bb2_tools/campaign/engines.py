@@ -191,7 +191,7 @@ class RayEngine:
 
         addr = self._init_address()
         hostport = addr[len("ray://"):] if addr.startswith("ray://") else addr
-        given = f"--address {addr}" if self.address else f"RAY_ADDRESS={addr} (no --address)"
+        given = self._given()
         found = ""
         if hostport == "auto":  # where Ray would look: RAY_ADDRESS, else the last cluster started on this machine
             env = os.environ.get("RAY_ADDRESS", "")
@@ -208,6 +208,11 @@ class RayEngine:
             raise SpecError(f"{given}{found}: no Ray cluster answers there ({e.strerror or e}); start "
                             f"one with `ray start --head` (it prints its address), or use --address auto on one of "
                             f"its machines") from None
+
+    def _given(self) -> str:
+        """Where the address came from, as the user gave it."""
+        addr = self._init_address()
+        return f"--address {addr}" if self.address else f"RAY_ADDRESS={addr} (no --address)"
 
     def _connect(self) -> Any:
         import logging
@@ -226,7 +231,13 @@ class RayEngine:
             kw: dict[str, Any] = {"log_to_driver": False, "logging_level": logging.WARNING}
             if address == "local":
                 kw["include_dashboard"] = False
-            ray.init(address=address, **kw)
+            try:
+                ray.init(address=address, **kw)
+            except ConnectionError as e:  # something answers there, not a Ray cluster (an OSError: not the folder)
+                from bb2_tools.campaign.errors import SpecError
+
+                raise SpecError(f"--engine ray: {self._given()}: {' '.join(str(e).split())}; start a cluster with "
+                                "`ray start --head` (it prints its address)") from None
         self._cpus = int(ray.cluster_resources().get("CPU", 1))
         return ray
 

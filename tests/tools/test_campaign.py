@@ -367,6 +367,28 @@ def test_a_ray_address_nobody_answers_is_said_at_once_before_the_campaign_folder
         RayEngine(address="auto")._probe_address()
 
 
+def test_an_address_where_something_other_than_ray_answers_is_said_as_such(monkeypatch):
+    """A port that answers but is no Ray cluster (measured here: any address through this machine's proxy): Ray's
+    ConnectionError, an OSError, was said as 'cannot write into out/campaigns/<name>: Failed to connect to Ray
+    cluster at ...', as if the campaign folder were the fault.  (Ray's own retries take ~20 s: ray.init stands in.)"""
+    ray = pytest.importorskip("ray")
+    from bb2_tools.campaign.engines import RayEngine
+    from bb2_tools.campaign.errors import SpecError
+
+    with socket.socket() as s:   # something listens there
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+
+        def refuse(address, **_kw):
+            raise ConnectionError(f"Failed to connect to Ray cluster at {address}.\nPlease ensure ...")
+
+        monkeypatch.setattr(ray, "init", refuse)
+        with pytest.raises(SpecError, match=rf"^--engine ray: --address 127.0.0.1:{port}: Failed to connect to Ray "
+                                            rf"cluster at 127.0.0.1:{port}. Please ensure ...; start a cluster with"):
+            RayEngine(address=f"127.0.0.1:{port}").prepare()
+
+
 def test_ray_without_an_address_starts_its_own_instance_whatever_the_last_cluster_left(tmp_path):
     """``--engine ray`` without ``--address``: a Ray instance started for this driver (RAY_ADDRESS when set).  Left
     to Ray, no address means the last cluster ``ray start`` ran on this machine too, and its address file outlives
@@ -416,6 +438,11 @@ def test_bad_command_lines_exit_2(tmp_path):
     assert r.returncode == 2 and "--workers" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     r = _campaign(str(f), "--only", "3", "--out-run", str(tmp_path / "x"))
     assert r.returncode == 2 and "--only 3" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    # a campaign's options with --only were flown past without a word (one run, here, into --out-run)
+    r = _campaign(str(f), "--only", "0", "--out-run", str(tmp_path / "x"), "--resume", "--out", str(tmp_path / "c"))
+    assert r.returncode == 2 and r.stderr == ("bb2-campaign: error: --out, --resume go with a campaign, not --only "
+                                              "(one run, flown here, written to --out-run)\n"), r.stderr
+    assert not (tmp_path / "x").exists()
 
 
 def test_maneuver_campaign_collects_the_printed_figures(tmp_path):
