@@ -507,7 +507,8 @@ def launcher_parameters(mission: Path, mode: str, arguments: Mapping[str, str] |
 
 def _same_value(param: str, a: Any, b: Any) -> bool:
     """Equal as ROS parameters: numbers by value, a mission file by the file it names, the rest by text."""
-    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool) | isinstance(b, bool):
+    numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (a, b))
+    if numbers:
         return float(a) == float(b)
     if param == "mission_file" and str(a).strip() and str(b).strip():
         return Path(str(a)).expanduser().resolve() == Path(str(b)).expanduser().resolve()

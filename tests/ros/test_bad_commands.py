@@ -330,7 +330,7 @@ def test_stall_timeout_stops_a_run_on_the_failsafe_and_a_release_starts_its_coun
     with exit_at_end).  A release counts: valid commands for longer than the timeout, then silence, and the
     simulator still steps on the failsafe for the whole timeout before it stops."""
     b, start = bench
-    stall_s = 1.0
+    stall_s = 3.0   # (1 s: in a full suite the bench saw the first failsafe status after the simulator had stopped)
     timing = (dict(startup_timeout_s=0.5, lockstep_timeout_s=0.1) if mode == "lockstep"
               else dict(rate_hz=40, command_timeout_s=0.2))
     sim = start(time_mode=mode, stall_timeout_s=stall_s, exit_at_end=True, status_period_s=0.2, **timing)
