@@ -485,12 +485,12 @@ def launcher_parameters(mission: Path, mode: str, arguments: Mapping[str, str] |
                         stall_timeout_s: float | None = None) -> dict[str, dict[str, tuple[Any, str, str]]]:
     """What the launcher sets for the graph that a params file may also set (:func:`params_overridden`):
     ``bb2-launch``'s, or with ``arguments`` (the launch files' arguments, as given) theirs; ``stall_timeout_s``
-    (> 0: set; None or 0: not) the simulator's."""
+    the simulator's (None: not set)."""
     if arguments is None:
         by, said = "bb2-launch", {"mission_file": (f"the mission bb2-launch flies ({mission})", "the MISSION argument"),
                                   "time_mode": (f"--mode {mode}", "--mode"),
-                                  "stall_timeout_s": (f"--stall-timeout {stall_timeout_s:g}" if stall_timeout_s else "",
-                                                      "--stall-timeout")}
+                                  "stall_timeout_s": (f"--stall-timeout {stall_timeout_s:g}"
+                                                      if stall_timeout_s is not None else "", "--stall-timeout")}
     else:
         by = "the launch file"
         said = {"mission_file": (f"launch argument mission:={arguments.get('mission', '')}", "mission:="),
@@ -499,7 +499,7 @@ def launcher_parameters(mission: Path, mode: str, arguments: Mapping[str, str] |
     sim_time = (True, f"{by} (the graph runs on the simulator's clock)", "")
     simulator = {"time_mode": (mode, *said["time_mode"]),
                  "use_sim_time": (False, f"{by} (the simulator is the graph's clock)", "")}
-    if stall_timeout_s is not None and (arguments is not None or stall_timeout_s > 0):  # (the launch files: 0 too)
+    if stall_timeout_s is not None:
         simulator["stall_timeout_s"] = (float(stall_timeout_s), *said["stall_timeout_s"])
     return {"*": {"mission_file": (str(mission), *said["mission_file"])}, "simulator": simulator,
             **{n.name: {"use_sim_time": sim_time} for n in GRAPH_NODES if n.name not in ("simulator", "recorder")}}
@@ -626,7 +626,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
                 monitor: GraphMonitor | None = None,
                 groups: Sequence[Sequence[str]] = (), foxglove_port: int | None = None,
                 namespace: str = "", own_recorder: bool = True, without: Sequence[str] = (),
-                stall_timeout_s: float = 0.0) -> list[ProcessSpec]:
+                stall_timeout_s: float | None = None) -> list[ProcessSpec]:
     """The process specs of the BB2 graph for one mission, in start order.
 
     The planner and the controllers, and in lockstep the simulator, are ``early``: :func:`run_graph`
@@ -646,9 +646,9 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
     ``--domain-id`` fly side by side without crosstalk.  ``record`` without ``own_recorder``: the boat is recorded by
     a recorder started elsewhere (a fleet's, :mod:`bb2_tools.fleet_launcher`), which the simulator waits for as for
     its own (its readers, its acknowledgements on the boat's ``bb2/recorder/ack``).  ``without``: nodes not started
-    (:func:`check_without`), a user's own in their place.  ``stall_timeout_s`` (> 0): the simulator's own, which
-    stops the run as stalled after stepping on its failsafe that long (its status says why, in the bag); 0: not
-    set (a params file's, else never).
+    (:func:`check_without`), a user's own in their place.  ``stall_timeout_s``: the simulator's own, which stops
+    the run as stalled after stepping on its failsafe that long (its status says why, in the bag; 0 = never); None:
+    not set (a params file's, else never).
     """
     from bb2_msgs_py.contract import boat_topic
 
@@ -666,7 +666,7 @@ def graph_specs(mission: Path, run_dir: Path, *, mode: str = "lockstep", params:
         ros += ["-p", f"mission_file:={mission}"]
         if name == "simulator":
             ros += ["-p", f"time_mode:={mode}"]
-            if stall_timeout_s > 0:  # the run stops as stalled, said by the simulator (status, bag, analysis)
+            if stall_timeout_s is not None:  # the run stops as stalled, said by the simulator (status, bag, analysis)
                 ros += ["-p", f"stall_timeout_s:={float(stall_timeout_s)}"]
             if record:  # the bag misses nothing from the first step on (its readers matched first)
                 ros += ["-p", "wait_for_readers:=true"]

@@ -187,6 +187,11 @@ def test_graph_specs_pass_mission_mode_params_and_sim_time(tmp_path):
     assert not [a for a in lock if "wait_for_commands" in a or "callback_priority" in a]  # lockstep: none of these
     bare = {s.name: s for s in L.graph_specs(mission, run, mode="lockstep", runner="python", record=False)}
     assert not [a for a in bare["simulator"].argv(0) if "recorder_ack_window" in a or "wait_for_readers" in a]
+    assert not [a for a in lock if "stall_timeout_s" in a]   # not given: a params file's, else never
+    # bb2-launch's --stall-timeout is the simulator's own (0 too: never, over a params file's)
+    for stall, said in ((60.0, "stall_timeout_s:=60.0"), (0.0, "stall_timeout_s:=0.0")):
+        sim = {s.name: s for s in L.graph_specs(mission, run, runner="python", stall_timeout_s=stall)}["simulator"]
+        assert said in sim.argv(0), sim.argv(0)
     # a restarted path_following rejoins the run where it stands (issue 10, point 3); the first attempt does not
     pf = by["path_following"]
     assert "rejoin_run:=true" not in pf.argv(0) and pf.argv(1)[-2:] == ["-p", "rejoin_run:=true"]
@@ -331,6 +336,9 @@ def test_a_params_file_value_the_launcher_sets_otherwise_is_named_or_refused(tmp
                                                               "stall_timeout": "60"}, 60.0)
     assert L.params_overridden(mine, launch_given)[1] == (f"params file {mine}: /**: stall_timeout_s 5.0 is "
                                                           "overridden by launch argument stall_timeout:=60")
+    for stall in (60.0, 0.0):   # bb2-launch's --stall-timeout, 0 (never) included
+        assert L.params_overridden(mine, L.launcher_parameters(canyon, "lockstep", stall_timeout_s=stall))[1] == (
+            f"params file {mine}: /**: stall_timeout_s 5.0 is overridden by --stall-timeout {stall:g}")
     (tmp_path / "missions").symlink_to(REPO / "missions")
     for entry, why in (("/boat1/simulator:\n  ros__parameters:\n    time_mode: realtime\n",
                         "/boat1/simulator: time_mode 'realtime' conflicts with --mode lockstep, which sets it to "
