@@ -27,8 +27,8 @@ from typing import Any
 
 import yaml
 
-from bb2_mission.schema import (MISSIONS_DIR, Mission, MissionError, load_mission, mission_file, shipped_missions,
-                                shipped_name_hint)
+from bb2_mission.schema import (MISSIONS_DIR, Mission, MissionError, is_bare_name, load_mission, mission_file,
+                                shipped_missions, shipped_name_hint)
 from bb2_sim.names import unknown_keys_hint
 from bb2_sim.outputs import plain_name
 from bb2_sim.yaml_files import load as load_yaml
@@ -115,7 +115,7 @@ def run_file(value: str | Path) -> Path:
     ``canyon_pair``: ``bb2-sim mission canyon`` and ``ros2 launch ... mission:=canyon`` take the name too) when no
     such file is here.  A file that is not there stays as given (its check says so, with :func:`run_file_hint`)."""
     f = mission_file(value)  # a file here, else a shipped mission of that name
-    if f.exists() or Path(value).suffix or len(Path(value).parts) != 1:
+    if f.exists() or not is_bare_name(value):
         return f
     fleet = FLEETS_DIR / f"{value}.yaml"
     return fleet if fleet.is_file() else f

@@ -457,11 +457,16 @@ def shipped_missions() -> list[str]:
     return sorted(f.stem for f in MISSIONS_DIR.glob("*.yaml"))
 
 
-def shipped_name_hint(value: str | Path, names: list[str] | None = None, what: str = "missions") -> str:
-    """For a file that does not exist and could be a shipped name (no folder, no suffix): ``" (did you mean
-    'canyon'?); shipped missions: canyon, circle, ..."``, else ``""``."""
+def is_bare_name(value: str | Path) -> bool:
+    """Whether ``value`` could be a shipped name: no folder, no suffix (``canyon``, not ``./canyon``, ``c.yaml``)."""
     f = Path(value)
-    if f.suffix or len(f.parts) != 1:
+    return not f.suffix and len(f.parts) == 1
+
+
+def shipped_name_hint(value: str | Path, names: list[str] | None = None, what: str = "missions") -> str:
+    """For a file that does not exist and could be a shipped name (:func:`is_bare_name`): ``" (did you mean
+    'canyon'?); shipped missions: canyon, circle, ..."``, else ``""``."""
+    if not is_bare_name(value):
         return ""
     names = shipped_missions() if names is None else names
     return f"{did_you_mean(str(value), names)}; shipped {what}: {', '.join(names)}"

@@ -665,11 +665,16 @@ class Simulator(Node):
         self._next_tick = time.monotonic()  # real time: the first deadline once the first state is out (its first
         self._started.set()  # publication's cost, ms on a slow machine, would make the first step late)
 
-    def _watchdog(self) -> None:
+    def _poll_end(self) -> None:
+        """A run over and not yet ``done``: its bounded wait, for the recorder's acknowledgement of the final step
+        and the statuses (finished), or for the status that says why to reach the recorder (diverged, stalled)."""
         if self.finished and not self.done:
-            self._end_when_recorded()  # bounded wait for the recorder's acknowledgement of the final step
+            self._end_when_recorded()
         elif (self.diverged or self.stalled) and not self.done:
-            self._end_after_error()  # bounded wait for the status that says why to reach the recorder
+            self._end_after_error()
+
+    def _watchdog(self) -> None:
+        self._poll_end()
         if not self._stepping() or not self.started:
             return
         if self._held is not None:  # answered; waiting for the recorder, not the controllers
@@ -877,10 +882,7 @@ class Simulator(Node):
 
     def _tick(self, period: float) -> None:
         """Real-time step (the stepping thread, at its deadline ``self._next_tick``)."""
-        if self.finished and not self.done:
-            self._end_when_recorded()  # bounded wait for the statuses to reach the recorder
-        elif (self.diverged or self.stalled) and not self.done:
-            self._end_after_error()
+        self._poll_end()
         now = time.monotonic()
         if not self._stepping():  # finished or diverged: poll the end at the step rate, never spin
             self._next_tick = now + period

@@ -286,12 +286,7 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
     if res.error is not None:
         print(f"bb2-sim: {res.error}; the CSV keeps every row up to t = {sim_t:.2f} s"
               + (f" ({a.out})" if a.out else ""), file=sys.stderr)
-        from .profiles import at_rest_hint
-        from .step_stability import substeps_hint
-
-        hint = (substeps_hint(res.traj["t_s"], res.traj["U_m_s"], s.substeps, "--substeps")
-                or at_rest_hint(s.profile, s.speed_mps, getattr(res.error, "t", math.inf)))
-        if hint:
+        if hint := res.divergence_hint("--substeps"):
             print(f"bb2-sim: {hint}", file=sys.stderr)
     try:
         from .metrics import figures_for

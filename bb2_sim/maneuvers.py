@@ -355,6 +355,19 @@ class ManeuverResult:
     def completed(self) -> bool:
         return self.error is None
 
+    def divergence_hint(self, substeps_option: str) -> str:
+        """'' or what to change after a divergence: more ROM sub-steps for a boat fast enough for the step to be
+        unstable (:func:`step_stability.substeps_hint`, naming ``substeps_option``), or a profile that starts from
+        rest for a run that started at rest (:func:`profiles.at_rest_hint`)."""
+        if self.error is None:
+            return ""
+        from .profiles import at_rest_hint
+        from .step_stability import substeps_hint
+
+        s = self.settings
+        return (substeps_hint(self.traj["t_s"], self.traj["U_m_s"], s.substeps, substeps_option)
+                or at_rest_hint(s.profile, s.speed_mps, getattr(self.error, "t", math.inf)))
+
 
 class CsvWriter:
     """Writes CSV rows as they come (flushed), so a diverged or interrupted run keeps what it had."""

@@ -70,6 +70,7 @@ class GraphMonitor:
         self.progress: float | None = None
         self.status_end = False  # the simulator's status says the mission duration is over
         self.sim_error: str | None = None  # the simulator's status says it stopped on an error
+        self.sim_error_state: str | None = None  # which: diverged, or stalled (on its failsafe: stall_timeout_s)
         self.failsafe: str | None = None  # the simulator's last status: stepping on the failsafe, and why
         self.end_at = end_at
         self._samples: collections.deque[tuple[float, float]] = collections.deque()
@@ -183,6 +184,7 @@ class GraphMonitor:
                 self.status_end = True
             elif state in ("diverged", "stalled"):
                 self.sim_error = vals.get("error") or st.message or state
+                self.sim_error_state = state
 
     def rtf(self, *, overall: bool = False) -> float | None:
         """Sim seconds per wall second over the last window, or (``overall``) while stepping: from the

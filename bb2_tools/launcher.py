@@ -882,8 +882,6 @@ FROZEN_CHECK_S = 0.5
 """How often (wall s) run_graph looks for stopped node processes (:meth:`Supervisor.stopped`)."""
 
 FAILSAFE_STALL = "stalled: the simulator has stepped on its failsafe"
-SIMULATOR_STALL = "stalled: stepped on the failsafe"
-"""How the simulator's own stop on its failsafe (``stall_timeout_s``) begins its ``error``."""
 FAILSAFE_BACKSTOP_S = 5.0
 """Wall seconds past ``--stall-timeout`` after which ``run_graph`` stops a graph stepping on its failsafe itself: the
 simulator, given the same timeout (:func:`graph_specs`), stops the run first and says why in its status (in the
@@ -1133,7 +1131,7 @@ def _main(argv: Sequence[str] | None) -> int:
                                                    recorded_topics(namespace), namespace)
         except OSError as exc:
             counts_note = f"cannot write {bags[0] / PUBLICATION_COUNTS_FILE}: {exc}"
-    if without and (result.reason.startswith(FAILSAFE_STALL) or SIMULATOR_STALL in result.reason):
+    if without and (result.reason.startswith(FAILSAFE_STALL) or monitor.sim_error_state == "stalled"):
         print(f"[bb2-launch] nothing answered in place of the {', '.join(without)} (--without): start your nodes on "
               f"ROS_DOMAIN_ID={monitor.domain_id}" + (f" in /{namespace}" if namespace else "") + " with the launch, "
               "or give --stall-timeout 0 to fly on the failsafe", file=sys.stderr)

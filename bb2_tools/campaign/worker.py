@@ -116,12 +116,9 @@ def _maneuver_outcome(spec: CampaignSpec, s: Any, res: Any) -> tuple[str, str, d
     from bb2_sim.metrics import figures_for
 
     status = "ok" if res.error is None else "diverged"
-    message = "" if res.error is None else _with_substeps_hint(_one_line(str(res.error)), res.traj, s.substeps)
-    if res.error is not None:
-        from bb2_sim.profiles import at_rest_hint
-
-        if rest := at_rest_hint(s.profile, s.speed_mps, getattr(res.error, "t", math.inf)):
-            message = f"{message}; {rest}"
+    message = "" if res.error is None else _one_line(str(res.error))
+    if hint := res.divergence_hint("substeps:"):   # (bb2-sim maneuver says the same beside its error)
+        message = f"{message}; {hint}"
     try:
         fig = figures_for(s.name, res.traj, **asdict(s))
     except Exception as e:  # noqa: BLE001 -- figures of a truncated run may not exist
