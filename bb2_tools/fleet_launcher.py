@@ -70,6 +70,10 @@ def boat_command(args: argparse.Namespace, mission: Path, boat: str, domain_id: 
     return cmd
 
 
+FLEET_MISSIONS = "each boat's own mission"
+"""What a fleet sets as every node's ``mission_file`` (said when a params file's node entry sets it otherwise)."""
+
+
 def run_fleet(args: argparse.Namespace) -> int:
     """Fly the fleet file ``args.mission`` (the options of ``bb2-launch``); returns the exit code."""
     from bb2_mission.fleet import load_fleet
@@ -82,7 +86,10 @@ def run_fleet(args: argparse.Namespace) -> int:
         if args.params is not None:
             check_params_file(args.params.resolve())
             given = launcher_parameters(Path(), args.mode, stall_timeout_s=args.stall_timeout)
-            del given["*"]  # (each boat's mission: its own launcher checks it, and says the warnings)
+            # each boat flies its own mission (written into the run directory): a node's own mission_file, which
+            # would win over it for that node of every boat, is refused here, before any boat flies (each boat's
+            # launcher says the /** warnings)
+            given["*"] = {"mission_file": (FLEET_MISSIONS, f"the fleet file {args.mission}", "")}
             params_overridden(args.params.resolve(), given)  # a node's own entry that would win: refused up front
         recorder = next(n for n in GRAPH_NODES if n.name == RECORDER_NODE_NAME)
         rec_base = node_command(recorder, args.runner)  # one clear error before anything starts

@@ -823,6 +823,24 @@ def test_a_fleet_with_a_boat_that_cannot_start_is_refused_before_any_boat_flies(
     assert not (tmp_path / "bags").exists()
 
 
+def test_a_fleet_params_file_that_gives_a_node_its_own_mission_is_refused_before_any_boat_flies(tmp_path, capsys):
+    """Each boat flies its own mission; a params file's ``simulator:`` ``mission_file`` would win over it for every
+    boat's simulator.  Each boat's launcher refused it (exit 2), after the other boats had started and the fleet's
+    run directory was claimed (the fleet exited 1): it is refused with the fleet, up front."""
+    from bb2_tools.fleet_launcher import run_fleet
+
+    fleet = tmp_path / "f.yaml"
+    fleet.write_text("boats: {b1: straight, b2: straight}\n")
+    params = tmp_path / "p.yaml"
+    params.write_text(f"simulator:\n  ros__parameters:\n    mission_file: {REPO / 'missions' / 'straight.yaml'}\n")
+    assert run_fleet(L.parse_args([str(fleet), "--params", str(params), "--bag-dir", str(tmp_path / "bags")])) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"bb2-launch: error: params file {params}: simulator: mission_file ") and (
+        f"conflicts with the fleet file {fleet}" in err and "leave it out and remove it from the file" in err
+        and err.count("\n") == 1), err
+    assert not (tmp_path / "bags").exists()
+
+
 def test_without_leaves_the_nodes_out_of_the_graph_and_of_a_composed_process(tmp_path):
     mission = REPO / "missions" / "straight.yaml"
     names = [s.name for s in L.graph_specs(mission, tmp_path / "run", without=("l1_autopilot", "mixer"))]
