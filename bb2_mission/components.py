@@ -27,7 +27,7 @@ from bb2_mission.schema import RPS_PATH_MEAN_SPEED, Mission, MissionError, _reso
 __all__ = ["MissionComponents", "HullProbes", "mission_components", "check_initial_state", "stack_overrides",
            "initial_state", "terrain_elevation", "build_model", "build_simulator", "build_mission_stack", "build_mixer",
            "build_sensor_suite", "sensor_spec", "cg_clearance", "step_truths",
-           "build_navigation_filter", "nominal_rps", "substeps_warning",
+           "build_navigation_filter", "nominal_rps", "substeps_warning", "expected_speed",
            "mission_warnings"]
 
 
@@ -265,11 +265,20 @@ def substeps_warning(m: Mission, rps: float | None = None) -> str:
     """Before the flight: '' or one line when the mission's speed (its start, or the steady cruise of its nominal
     propeller command) is faster than its ``substeps`` fly steadily (:func:`bb2_sim.step_stability.speed_warning`).
     ``rps``: :func:`nominal_rps` of ``m`` when the caller has it already (rev/s); computed when None."""
-    from bb2_sim.step_stability import cruise_speed, speed_warning
+    from bb2_sim.step_stability import speed_warning
 
     rps = nominal_rps(m) if rps is None else float(rps)
-    speed = max(float(np.linalg.norm(initial_state(m)[6:9])), cruise_speed(rps))
-    return speed_warning(speed, m.substeps, "the mission's substeps:", f"mission {m.name} ({rps:.2f} rps)")
+    return speed_warning(expected_speed(m, rps), m.substeps, "the mission's substeps:",
+                         f"mission {m.name} ({rps:.2f} rps)")
+
+
+def expected_speed(m: Mission, rps: float | None = None) -> float:
+    """The speed mission ``m`` is expected to hold, m/s: its start, or the steady cruise of its nominal propeller
+    command when faster (:func:`bb2_sim.step_stability.cruise_speed`; ``rps`` as in :func:`substeps_warning`)."""
+    from bb2_sim.step_stability import cruise_speed
+
+    rps = nominal_rps(m) if rps is None else float(rps)
+    return max(float(np.linalg.norm(initial_state(m)[6:9])), cruise_speed(rps))
 
 
 def mission_warnings(m: Mission, rps: float | None = None) -> list[str]:

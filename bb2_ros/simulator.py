@@ -143,7 +143,8 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from bb2_mission.components import (build_model, build_navigation_filter, build_sensor_suite, build_simulator,
-                                    mission_warnings, nominal_rps, sensor_spec, step_truths)
+                                    expected_speed, mission_warnings, nominal_rps, sensor_spec,
+                                    step_truths)
 from bb2_mission.lockstep_gate import (CommandLimits, CommandValidator, GateTimings, LockstepGate, RecorderAck,
                                        StepDecision, TimeMode, Verdict, WatchdogAction)
 from bb2_msgs_py import conversions as cv
@@ -336,6 +337,7 @@ class Simulator(Node):
         limits = CommandLimits.from_actuators(self.sim.model.params.act, plane_joints=PLANE_JOINTS,
                                               propeller_joint=PROPELLER_JOINT, frame_id=self.base_link)
         rps = build_piece(self.mission, nominal_rps)  # the stack's feed-forward propeller command, rev/s
+        self._expected_speed_mps = build_piece(self.mission, lambda m: expected_speed(m, rps))  # (a divergence's hint)
         self.gate = LockstepGate(
             CommandValidator(limits, mode=self.time_mode, max_command_age_s=self.max_command_age_s, step_s=self.h),
             GateTimings(lockstep_timeout_s=self.lockstep_timeout_s, lockstep_retry_s=self.lockstep_retry_s,
@@ -909,7 +911,8 @@ class Simulator(Node):
         try:
             rec = self.sim.step(planes_deg, rps)
         except (NonFiniteStateError, ValueError) as exc:
-            hint = substeps_hint(*zip(*self._recent_speeds), self.sim.substeps, "the mission's substeps:")
+            hint = substeps_hint(*zip(*self._recent_speeds), self.sim.substeps, "the mission's substeps:",
+                                 self._expected_speed_mps)
             self.diverged = f"{exc}; {hint}" if hint else str(exc)
             self.exit_code = 1
             self.get_logger().error(f"simulation stopped: {self.diverged}")

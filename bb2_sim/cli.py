@@ -261,10 +261,9 @@ def run_maneuver_cli(a: argparse.Namespace) -> int:
         print(f"bb2-sim: error: {os_error_line(e, a.out)}", file=sys.stderr)
         return 2
     print(f"maneuver {s.name}: {s.doc}")
-    from .step_stability import cruise_speed, speed_warning
+    from .step_stability import speed_warning
 
-    held = s.speed_mps if s.propeller != "constant" else max(s.speed_mps, cruise_speed(s.rps_command))
-    warnings = (speed_warning(held, s.substeps, "--substeps", f"maneuver {s.name}"),
+    warnings = (speed_warning(s.expected_speed_mps(), s.substeps, "--substeps", f"maneuver {s.name}"),
                 saturation_warning(s, float(model.params.act["plane_limit_deg"])),
                 s.environment.sea.steepness_warning(model.params.g) if s.environment is not None else "")
     for warning in filter(None, warnings):

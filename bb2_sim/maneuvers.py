@@ -101,6 +101,13 @@ class ManeuverSettings:
             return float(self.rps)
         return self.speed_mps * float(autopilot_v12_gains()["rps_per_speed"])
 
+    def expected_speed_mps(self) -> float:
+        """The speed the run is expected to hold, m/s: its start, or the steady cruise of its constant propeller
+        command when faster (:func:`step_stability.cruise_speed`; the speed PI holds the start)."""
+        from .step_stability import cruise_speed
+
+        return self.speed_mps if self.propeller != "constant" else max(self.speed_mps, cruise_speed(self.rps_command))
+
     @property
     def z_ref(self) -> float:
         return -(self.depth if self.depth_ref is None else self.depth_ref)
@@ -365,7 +372,7 @@ class ManeuverResult:
         from .step_stability import substeps_hint
 
         s = self.settings
-        return (substeps_hint(self.traj["t_s"], self.traj["U_m_s"], s.substeps, substeps_option)
+        return (substeps_hint(self.traj["t_s"], self.traj["U_m_s"], s.substeps, substeps_option, s.expected_speed_mps())
                 or at_rest_hint(s.profile, s.speed_mps, getattr(self.error, "t", math.inf)))
 
 

@@ -72,11 +72,14 @@ def speed_warning(speed_mps: float, substeps: int, option: str, subject: str = "
             f"flies steadily (about {flown:.1f} m/s) and will likely diverge; {option} {more} flies {reach}")
 
 
-def substeps_hint(t_s: Sequence[float], speed_mps: Sequence[float], substeps: int, option: str) -> str:
+def substeps_hint(t_s: Sequence[float], speed_mps: Sequence[float], substeps: int, option: str,
+                  toward_mps: float = 0.0) -> str:
     """For a run that diverged: '' or one line advising ``option`` with more ``substeps`` (:func:`substeps_for`)
     when the boat held, over its last 2 s, at least :func:`hint_from` of the fastest steady cruise that
     ``substeps`` fly (``t_s``, ``speed_mps``: its logged times and speeds, the last finite ones; a boat that
-    capsized at low speed gets no such hint)."""
+    capsized at low speed gets no such hint).  ``toward_mps``: the steady speed the run was heading for (the
+    cruise of its propeller command, :func:`cruise_speed`); when faster than the speed held, the advice is for it
+    (a boat diverging while it speeds up would diverge again, faster, with the sub-steps for the speed it held)."""
     t = np.asarray(t_s, dtype=float)
     u = np.asarray(speed_mps, dtype=float)
     if t.size == 0:
@@ -86,8 +89,11 @@ def substeps_hint(t_s: Sequence[float], speed_mps: Sequence[float], substeps: in
     flown, _ = limits.get(substeps, limits[max(limits)])
     if not held >= hint_from() * flown:
         return ""
-    more = substeps_for(held, substeps)
+    toward = float(toward_mps) if float(toward_mps) > hint_margin() * held else 0.0
+    more = substeps_for(max(held, toward), substeps, margin=1.0 if toward else None)
     measured = ", ".join(f"{d:.1f}{' m/s' * (i == 0)} with {k}" for i, (k, (_, d)) in enumerate(sorted(limits.items())))
-    return (f"the boat held {held:.1f} m/s, near or past where the ROM's 0.05 s step in {substeps} ode3 step(s) "
-            f"turns numerically unstable (a steady cruise diverges from about {measured}); {option} {more} "
-            f"integrates it in {more}")
+    heading = f" on its way to about {toward:.1f} m/s (the steady cruise of its propeller command)" if toward else ""
+    beyond = "" if more in limits else " or more (faster than measured: benchmarks/substeps_stability.py)"
+    return (f"the boat held {held:.1f} m/s{heading}, near or past where the ROM's 0.05 s step in {substeps} ode3 "
+            f"step(s) turns numerically unstable (a steady cruise diverges from about {measured}); {option} {more} "
+            f"integrates it in {more}{beyond}")

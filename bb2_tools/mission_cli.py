@@ -99,9 +99,11 @@ def run_mission_cli(a: argparse.Namespace) -> int:
     if res.summary.event is not None:
         print(f"bb2-sim: mission {m.name} failed: {res.summary.event}", file=sys.stderr)
         if res.summary.end_reason is EndReason.DIVERGED:
+            from bb2_mission.components import expected_speed
             from bb2_sim.step_stability import substeps_hint
 
-            hint = substeps_hint(res.traj["t_s"], res.traj["U_m_s"], m.substeps, "the mission's substeps:")
+            hint = substeps_hint(res.traj["t_s"], res.traj["U_m_s"], m.substeps, "the mission's substeps:",
+                                 expected_speed(m))
             if hint:
                 print(f"bb2-sim: {hint}", file=sys.stderr)
         return 1

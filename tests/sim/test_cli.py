@@ -146,6 +146,19 @@ def test_a_fast_boat_diverging_at_the_authors_step_is_told_of_substeps_which_fly
     assert float(rows[-1][rows[0].index("U_m_s")]) > 15.0
 
 
+def test_a_boat_diverging_while_it_speeds_up_is_advised_for_the_speed_it_was_heading_for():
+    """``--rps 100`` (a steady cruise of about 431 m/s) diverges within 5 s, at about 15 m/s: the advice was
+    ``--substeps 3`` (for 15 m/s), which diverged again, a little later, while the warning before the run had
+    said 8.  It now names where the boat was heading and the sub-steps for it, beyond the measured table."""
+    p = run("maneuver", "turning-circle", "--rps", "100", "--quiet")
+    assert p.returncode == 1 and "diverged at t =" in p.stderr, p.stderr
+    hint = next(line for line in p.stderr.splitlines() if "numerically unstable" in line)
+    assert re.match(r"bb2-sim: the boat held [0-9.]+ m/s on its way to about 431\.0 m/s \(the steady cruise of its "
+                    r"propeller command\)", hint) and hint.endswith(
+        "--substeps 8 integrates it in 8 or more (faster than measured: benchmarks/substeps_stability.py)"), hint
+    assert "--substeps 8 flies faster than measured" in p.stderr  # the warning before the run: the same advice
+
+
 def test_authors_surfaces_accepted_as_user_mesh(shared, tmp_path):
     surf = shared("bb2_rom", "surface")
     out = tmp_path / "ol.csv"

@@ -106,6 +106,16 @@ def test_the_advice_is_the_fewest_sub_steps_measured_to_cruise_with_a_margin_abo
     assert substeps_hint(t, slowed, 1, "--substeps") == ""
     assert substeps_hint([], [], 1, "--substeps") == ""
     assert substeps_hint(t, np.full_like(t, 16.8), 2, "x:").endswith("x: 4 integrates it in 4")  # 1.1 x 16.8: past 3
+    # a boat that diverged while it sped up towards a faster cruise: the advice is for where it was heading (the
+    # sub-steps for the speed it held would diverge again, a little faster), none from below the margin
+    on_way = substeps_hint(t, held, 1, "--substeps", toward_mps=limits[2][0])
+    assert f"on its way to about {limits[2][0]:.1f} m/s" in on_way and on_way.endswith("--substeps 2 integrates it "
+                                                                                         "in 2"), on_way
+    assert substeps_hint(t, held, 1, "--substeps", toward_mps=held[0] * hint_margin()) == hint
+    assert substeps_hint(t, held - 0.05, 1, "--substeps", toward_mps=100.0) == ""  # the held speed decides
+    assert substeps_hint(t, held, 1, "--substeps", toward_mps=431.0).endswith(
+        f"--substeps {2 * max(limits)} integrates it in {2 * max(limits)} or more (faster than measured: "
+        "benchmarks/substeps_stability.py)")
 
 
 def test_a_run_faster_than_its_sub_steps_fly_is_warned_before_it_starts(model):
