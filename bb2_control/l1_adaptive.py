@@ -25,7 +25,6 @@ from operator import mul
 from typing import Any, Mapping, Sequence
 
 import numpy as np
-from scipy import linalg
 
 from bb2_control.errors import ControlConfigError, NonFiniteInputError
 
@@ -53,6 +52,8 @@ def _mat(x: Any, name: str) -> np.ndarray:
 
 def _zoh(A: np.ndarray, B: np.ndarray, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     """(expm(A Ts), int_0^Ts expm(A t) dt B) from one exponential of [[A, B], [0, 0]] Ts."""
+    from scipy import linalg  # (each process that designs a channel; see design_channel)
+
     n, m = A.shape[0], B.shape[1]
     big = np.zeros((n + m, n + m))
     big[:n, :n] = A
@@ -88,6 +89,8 @@ def _observer_form(nums: list[np.ndarray], den: np.ndarray) -> tuple[np.ndarray,
 
 def _controllable_part(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-10):
     """Restrict an (observable) realisation to its controllable subspace: a minimal realisation."""
+    from scipy import linalg
+
     n = A.shape[0]
     ctrb = np.hstack([np.linalg.matrix_power(A, i) @ B for i in range(n)])
     T = linalg.orth(ctrb, rcond=tol)
@@ -139,6 +142,18 @@ class L1Design:
         return self.Ao.shape[0]
 
 
+def ss2tf_siso(A: Any, B: Any, C: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``scipy.signal.ss2tf(A, B, C, 0)`` of a single-input single-output system: (num of shape (1, n + 1), den),
+    by the same operations on numpy's ``poly`` (equal to the last digit: ``tests/control/test_l1_adaptive.py``),
+    without importing scipy.signal, which costs every process that designs an L1 channel (the autopilot node) ~0.35 s
+    of CPU on this machine.  num = poly(A - B C) - poly(A): the numerator of C (sI - A)^-1 B."""
+    A, B, C = (np.atleast_2d(np.asarray(x)) for x in (A, B, C))
+    den = np.poly(A)
+    num = np.empty((1, A.shape[0] + 1), (A[:, 0] + B[:, 0] + C[0, :] + 0.0).dtype)
+    num[0] = np.poly(A - np.dot(B, C)) + (0.0 - 1) * den
+    return num, den
+
+
 def design_channel(
     C_num: Sequence[float],
     C_den: Sequence[float],
@@ -163,7 +178,8 @@ def design_channel(
         L1DesignError: on any violated design assumption (A_m not Hurwitz, C(0) != 1, C not strictly
             proper or unstable, O(s) improper, realisation not matching M_tf, Ts <= 0).
     """
-    from scipy import signal  # here, not at import: scipy.signal costs a process ~0.8 s
+    from scipy import linalg  # here, not at import: every node imports this module (a mission names its stack);
+    # scipy.linalg costs ~0.2 s of CPU in each process, and only the autopilot (and path following) design channels
 
     Ts = float(Ts)
     if not np.isfinite(Ts) or Ts <= 0:
@@ -173,13 +189,16 @@ def design_channel(
     if M_ss is not None:
         Am, Bm, Cm = (_mat(x, n) for x, n in zip(M_ss, ("Am", "Bm", "Cm")))
     else:
+        from scipy import signal  # here, not at import: scipy.signal (and the scipy.stats it imports) costs a
+        # process ~0.35 s of CPU on this machine; the shipped channels give M_ss
+
         Am, Bm, Cm, _ = signal.tf2ss(_poly(M_tf[0], "M num"), _poly(M_tf[1], "M den"))
     nm = Am.shape[0]
     if Am.shape != (nm, nm) or Bm.shape != (nm, 1) or Cm.shape != (1, nm):
         raise L1DesignError(f"M must be SISO: got Am {Am.shape}, Bm {Bm.shape}, Cm {Cm.shape}")
     if not np.all(np.real(np.linalg.eigvals(Am)) < 0):
         raise L1DesignError(f"Am must be Hurwitz, eigenvalues {np.linalg.eigvals(Am)}")
-    numM, denM = signal.ss2tf(Am, Bm, Cm, np.zeros((1, 1)))
+    numM, denM = ss2tf_siso(Am, Bm, Cm)
     numM = np.trim_zeros(np.real(numM[0]), "f")
     denM = np.real(denM)
     if M_ss is not None and M_tf is not None:
@@ -221,7 +240,7 @@ def design_channel(
     # O(s) = C(s) M(s)^-1 Cm (sI - Am)^-1 = Cn * row_j / (Cd * numM), row_j / det(sI - Am) = Cm adj(sI - Am) e_j
     row_nums = []
     for j in range(nm):
-        rn, _ = signal.ss2tf(Am, np.eye(nm)[:, [j]], Cm, np.zeros((1, 1)))
+        rn, _ = ss2tf_siso(Am, np.eye(nm)[:, [j]], Cm)
         row_nums.append(np.real(rn[0]))
     O_den = np.polymul(Cd, numM)
     O_nums = [np.polymul(Cn, rn) for rn in row_nums]

@@ -31,15 +31,16 @@ __all__ = ["MissionComponents", "HullProbes", "mission_components", "check_initi
            "mission_warnings"]
 
 
-def stack_overrides(m: Mission) -> dict[str, Any]:
+def stack_overrides(m: Mission, speed: bool = True) -> dict[str, Any]:
     """Overrides the mission applies to its stack: ``adaptation`` and, when ``rps`` is set, the speed.
 
     ``rps`` becomes the stack's feed-forward speed reference (v_ref = rps * advance) so that the stack's
     own output carries the propeller command, in-process and in ROS alike.  Build the stack with
-    ``build_stack(m.stack, m.path, stack_overrides(m))``.
+    ``build_stack(m.stack, m.path, stack_overrides(m))``.  ``speed`` False: without it, for a piece that has no
+    speed (the mixer: the path's mean speed is a quadrature whose scipy imports cost its process ~0.35 s of CPU).
     """
     over: dict[str, Any] = {"adaptation": bool(m.adaptation)}
-    if m.rps is not None:
+    if m.rps is not None and speed:
         _, cfg = _resolve_stack(m.stack, m.adaptation, None)
         advance = float(cfg["speed"].get("advance_m_per_rev", 4.0))
         v_ref = m.path.arc_length() / m.path.span if m.rps == RPS_PATH_MEAN_SPEED else float(m.rps) * advance
@@ -195,7 +196,7 @@ def build_mixer(m: Mission) -> Any:
     """Only the X-plane mixer of the mission's stack (the mixer node's one piece)."""
     from bb2_control.stacks import build_mixer as stack_mixer
 
-    return stack_mixer(m.stack, stack_overrides(m))
+    return stack_mixer(m.stack, stack_overrides(m, speed=False))  # (the mixer has no speed)
 
 
 def sensor_spec(m: Mission, suite: str = "") -> Any:

@@ -80,14 +80,27 @@ def _as_points(c: np.ndarray) -> np.ndarray:
 def basis_matrix(n: int, tau: np.ndarray) -> np.ndarray:
     """Bernstein basis ``B[k, i] = B_{i,n}(tau_k)``, shape ``(len(tau), n + 1)``.
 
-    Computed as the binomial pmf (scipy.stats), which is numerically safe for high degrees.
+    Computed as the binomial pmf, which is numerically safe for high degrees: scipy's own ufunc, which
+    ``scipy.stats.binom.pmf`` evaluates for valid arguments and clips to [0, 1] (:func:`_binomial_pmf`).
     ``p(tau) = basis_matrix(n, tau) @ c``.
     """
     tau = np.atleast_1d(np.asarray(tau, dtype=float))
     i = np.arange(n + 1)
-    from scipy import stats
+    return np.clip(_binomial_pmf()(i[None, :], n, np.clip(tau, 0.0, 1.0)[:, None]), 0.0, 1.0)
 
-    return stats.binom.pmf(i[None, :], n, np.clip(tau, 0.0, 1.0)[:, None])
+
+def _binomial_pmf():
+    """The binomial pmf ufunc (k, n, p) that ``scipy.stats.binom.pmf`` calls for valid arguments (k, n integers,
+    0 <= p <= 1) and clips to [0, 1]: clipped, the same values to the last digit (``tests/planner/test_bernstein.py``)
+    without importing scipy.stats, which cost every process that samples a path (the planner, path following) ~0.35 s
+    of CPU on this machine.  scipy.stats's own function where that private ufunc is not there."""
+    try:
+        from scipy.special._ufuncs import _binom_pmf
+    except ImportError:  # another scipy: the public function
+        from scipy import stats
+
+        return stats.binom.pmf
+    return _binom_pmf
 
 
 def de_casteljau(c: np.ndarray, tau: np.ndarray) -> np.ndarray:

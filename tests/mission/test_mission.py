@@ -394,3 +394,27 @@ def test_the_synthetic_canyon_is_generated_once_and_shared_read_only():
         assert np.array_equal(arr, getattr(fresh, name)) and not arr.flags.writeable
     with pytest.raises(ValueError):
         a.terrain.z[0, 0] = 0.0
+
+
+def test_each_node_piece_is_the_stacks_own_without_the_imports_it_does_not_need():
+    """The mixer node builds only the stack's mixer (without the speed: the path's mean speed is a quadrature
+    whose scipy imports cost the process ~0.35 s of CPU): for every shipped mission it is the full stack's mixer.
+    A process that loads a mission and builds its mixer imports none of scipy (each graph launch paid scipy.stats,
+    scipy.signal and scipy.special in nodes that never used them: ~1.5 s of CPU per launch, measured)."""
+    import subprocess
+    import sys
+
+    from bb2_mission.components import build_mission_stack, build_mixer
+
+    for f in sorted(MISSIONS_DIR.glob("*.yaml")):
+        m = load_mission(f)
+        a, b = build_mixer(m), build_mission_stack(m).mixer
+        assert type(a) is type(b) and vars(a).keys() == vars(b).keys(), f
+        for k, va in vars(a).items():
+            vb = vars(b)[k]
+            assert np.array_equal(va, vb) if isinstance(va, np.ndarray) else va == vb, (f, k)
+    code = ("import sys\nfrom bb2_mission import MISSIONS_DIR, load_mission\nfrom bb2_mission.components import "
+            "build_mixer\nbuild_mixer(load_mission(MISSIONS_DIR / 'straight.yaml'))\n"
+            "print(sorted(n for n in sys.modules if n == 'scipy' or n.startswith('scipy.')))")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0 and p.stdout.strip() == "[]", (p.stdout, p.stderr)
