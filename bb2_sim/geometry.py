@@ -34,7 +34,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import trimesh
 import yaml
 
 from bb2_sim.frames import rotation_native
@@ -98,10 +97,14 @@ class HullSurfaces:
 
     def volume(self) -> float:
         """Enclosed volume (m^3): sum over all parts, planes undeflected."""
+        import trimesh  # (here, not at import: see _signed_volume)
+
         return float(trimesh.triangles.mass_properties(self.all_triangles(), skip_inertia=True).volume)
 
     def centroid(self) -> np.ndarray:
         """Centre of buoyancy (centroid of the enclosed volume), body frame, metres."""
+        import trimesh
+
         return np.asarray(
             trimesh.triangles.mass_properties(self.all_triangles(), skip_inertia=True).center_mass, dtype=float)
 
@@ -162,7 +165,19 @@ def _cross(T: np.ndarray) -> np.ndarray:
 
 
 def _volume(T: np.ndarray) -> float:
+    """Enclosed volume of a triangle soup, m^3: trimesh's mass properties (the volumes the surfaces report)."""
+    import trimesh
+
     return float(trimesh.triangles.mass_properties(T, skip_inertia=True).volume) if len(T) else 0.0
+
+
+def _signed_volume(T: np.ndarray) -> float:
+    """Enclosed volume of a closed triangle soup by the divergence theorem (the sum of v0 . (v1 x v2) / 6), m^3:
+    its sign is the winding (> 0 outward), which is what the mesh builders and the closure check need.  The
+    volumes and the centroid the surfaces report are trimesh's (:func:`_volume`); importing trimesh (and the
+    scipy.spatial, sparse and ndimage it imports) cost every process that builds a model -- the simulator node, the
+    launcher's start check, ``bb2-sim`` -- ~0.5 s of CPU, for a sign."""
+    return float(np.einsum("ij,ij->", T[:, 0], np.cross(T[:, 1], T[:, 2])) / 6.0) if len(T) else 0.0
 
 
 def _check_closed(label: str, T: np.ndarray, normals: np.ndarray | None) -> None:
@@ -176,8 +191,8 @@ def _check_closed(label: str, T: np.ndarray, normals: np.ndarray | None) -> None
     if gap > CLOSURE_TOL:
         raise HullMeshError(f"{label}: surface is not closed (|sum of area vectors| / area = {gap:.2e} > "
                             f"{CLOSURE_TOL:g}); a part or a half is missing, or faces have mixed orientation")
-    if _volume(T) <= 0.0:
-        raise HullMeshError(f"{label}: normals point inwards (enclosed volume {_volume(T):.6g} m^3 <= 0)")
+    if _signed_volume(T) <= 0.0:
+        raise HullMeshError(f"{label}: normals point inwards (enclosed volume {_signed_volume(T):.6g} m^3 <= 0)")
     if normals is not None:
         big = area > 1e-9 * area.max()
         cos = np.einsum("ij,ij->i", cr[big], normals[big]) / (2.0 * area[big])
@@ -229,6 +244,8 @@ def _read_mesh_file(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
         if not np.all(np.abs(np.linalg.norm(normals, axis=1) - 1.0) <= UNIT_NORMAL_TOL):
             normals = None  # e.g. exporters writing zero normals: use the winding
     elif suffix in MESH_SUFFIXES:
+        import trimesh
+
         try:
             mesh = trimesh.load(str(path), file_type=suffix[1:], process=False, force="mesh")
             T = np.asarray(mesh.triangles, dtype=np.float64)
@@ -405,7 +422,7 @@ def _load_cached(key: str) -> HullSurfaces:
 # mesh builders: table of offsets -> closed, outward triangle meshes (vertices V, faces F)
 # ------------------------------------------------------------------------------------------------
 def _orient_outward(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    return F[:, ::-1].copy() if _volume(V[F]) < 0.0 else F
+    return F[:, ::-1].copy() if _signed_volume(V[F]) < 0.0 else F
 
 
 def _quad_strip(A: np.ndarray, B: np.ndarray, closed: bool) -> np.ndarray:
