@@ -10,7 +10,8 @@ the holes in the commands).  The recorder's four cells are in ``test_recording_g
 
 The cells are independent runs; the module's fixture runs two at a time (each waits on DDS, on its 5 s stop or on
 the wall clock most of the time): 215-260 s measured for the file on this 2-core machine at a load average of 5-8
-(other graph tests beside it).
+(other graph tests beside it); 158-190 s in the idle suite once the nodes' start-up imports went (2026-12-07), about
+300 s of CPU (183 s alone).
 """
 from __future__ import annotations
 
