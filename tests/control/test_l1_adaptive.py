@@ -237,6 +237,13 @@ def test_the_transfer_function_of_a_realisation_is_scipy_signal_ss2tf_to_the_las
             got = ss2tf_siso(A, Bj, C)
             for g, w in zip(got, want):
                 assert g.dtype == w.dtype and g.shape == w.shape and np.array_equal(g, w), (A, Bj, C)
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom bb2_control.stacks import build_stack\nbuild_stack('rate_2022')\n"
+            "print(sorted(n for n in ('scipy.signal', 'scipy.stats') if n in sys.modules))")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0 and p.stdout.strip() == "[]", (p.stdout, p.stderr)   # the reason it is written so
 
 
 def test_transfer_function_only_design_has_unit_dc_gain():

@@ -49,6 +49,13 @@ def test_the_basis_is_scipy_stats_binomial_pmf_to_the_last_digit():
         want = stats.binom.pmf(np.arange(n + 1)[None, :], n, np.clip(tau, 0.0, 1.0)[:, None])
         got = basis_matrix(n, tau)
         assert got.dtype == want.dtype and got.shape == want.shape and np.array_equal(got, want), n
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np\nfrom bb2_planner.bernstein import basis_matrix\n"
+            "basis_matrix(9, np.linspace(0, 1, 5))\nprint('scipy.stats' in sys.modules)")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0 and p.stdout.strip() == "False", (p.stdout, p.stderr)   # the reason it is written so
 
 
 def test_shapes_and_end_point_interpolation():
