@@ -90,6 +90,18 @@ class MissionResult:
     def failed(self) -> bool:
         return self.summary.failed
 
+    def divergence_hint(self, substeps_option: str) -> str:
+        """'' or, after a divergence, the advice of more ROM sub-steps for a boat fast enough for the step to be
+        unstable (:func:`bb2_sim.step_stability.substeps_hint`, naming ``substeps_option``, for the speed it held or
+        the one it was heading for: :func:`bb2_mission.components.expected_speed`)."""
+        if self.summary.end_reason is not EndReason.DIVERGED:
+            return ""
+        from bb2_mission.components import expected_speed
+        from bb2_sim.step_stability import substeps_hint
+
+        return substeps_hint(self.traj["t_s"], self.traj["U_m_s"], self.mission.substeps, substeps_option,
+                             expected_speed(self.mission))
+
 
 class MissionRunner:
     """Flies a mission tick by tick (see the module docstring for the tick).

@@ -36,7 +36,7 @@ def add_mission_parser(sub) -> argparse.ArgumentParser:
 def run_mission_cli(a: argparse.Namespace) -> int:
     from bb2_sim.maneuvers import CsvWriter
     from bb2_sim.outputs import check_fits_in_memory, check_output_file, os_error_line
-    from bb2_mission import MISSION_COLUMNS, EndReason, MissionError, MissionRunner, load_mission
+    from bb2_mission import MISSION_COLUMNS, MissionError, MissionRunner, load_mission
 
     try:
         m = load_mission(a.file)
@@ -98,13 +98,7 @@ def run_mission_cli(a: argparse.Namespace) -> int:
             print(f"  figures: {', '.join(str(f) for f in figs.values())}")
     if res.summary.event is not None:
         print(f"bb2-sim: mission {m.name} failed: {res.summary.event}", file=sys.stderr)
-        if res.summary.end_reason is EndReason.DIVERGED:
-            from bb2_mission.components import expected_speed
-            from bb2_sim.step_stability import substeps_hint
-
-            hint = substeps_hint(res.traj["t_s"], res.traj["U_m_s"], m.substeps, "the mission's substeps:",
-                                 expected_speed(m))
-            if hint:
-                print(f"bb2-sim: {hint}", file=sys.stderr)
+        if hint := res.divergence_hint("the mission's substeps:"):
+            print(f"bb2-sim: {hint}", file=sys.stderr)
         return 1
     return 0

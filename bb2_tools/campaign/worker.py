@@ -96,8 +96,8 @@ def _mission_outcome(spec: CampaignSpec, res: Any) -> tuple[str, str, dict[str, 
     s = res.summary
     status = END_STATUS.get(str(s.end_reason), "error")
     message = _one_line(str(s.event)) if s.event is not None else ""
-    if status == "diverged":
-        message = _with_substeps_hint(message, res.traj, res.mission)
+    if hint := res.divergence_hint("substeps:"):   # (bb2-sim mission says the same beside its error)
+        message = f"{message}; {hint}"
     return status, message, mission_values(s, spec.collect)
 
 
@@ -130,16 +130,6 @@ def _maneuver_outcome(spec: CampaignSpec, s: Any, res: Any) -> tuple[str, str, d
         t_end = float(res.traj["t_s"][-1])   # (the empty cells of an ok row: a run too short for them, said)
         message = f"not reached in this {t_end:g} s run: {', '.join(missed)}"
     return status, message, maneuver_values(str(spec.maneuver), fig, spec.collect)
-
-
-def _with_substeps_hint(message: str, traj: dict[str, Any], mission: Any) -> str:
-    """A diverged mission's message, with the advice of more ROM sub-steps when the boat was fast enough for the
-    authors' step to be numerically unstable (what ``bb2-sim mission`` says beside its error)."""
-    from bb2_mission.components import expected_speed
-    from bb2_sim.step_stability import substeps_hint
-
-    hint = substeps_hint(traj["t_s"], traj["U_m_s"], mission.substeps, "substeps:", expected_speed(mission))
-    return f"{message}; {hint}" if hint else message
 
 
 _CACHES: dict[Any, Any] | None = None
