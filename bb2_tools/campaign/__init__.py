@@ -30,7 +30,10 @@ the engine, the number of workers or the order in which runs finish.
 set (mappings created as needed); it is then validated and loaded by
 :func:`bb2_mission.schema.mission_from_dict` (relative files beside the mission file), so any mission field,
 initial state (``initial.*``), limit, profile (``profile``), sea / current field of the mission schema, or
-stack gain can be varied.  A stack given by name becomes ``{base: NAME}`` first, so
+stack gain can be varied.  ``sea.hs`` varied on a mission with no sea (or a ``sea:`` block naming no spectrum,
+component list or sea state) flies a Pierson-Moskowitz sea (JONSWAP with a ``sea.tp``), each run with its own wave
+phases (``seed_key: sea.seed`` unless given): :func:`bb2_tools.campaign.spec.default_sea`, said as notes and kept
+in ``campaign.yaml``.  A stack given by name becomes ``{base: NAME}`` first, so
 ``stack.autopilot.K_q_deg_per_radps`` or ``stack.guidance.d_m`` overrides one gain of the named stack.
 Maneuvers: the keys are the maneuver settings of ``bb2_sim.maneuvers.ManeuverSettings`` (``rudder_deg``,
 ``speed_mps``, ``depth``, ``sea_state``, ``profile``, ``duration``, ...) and a mission's ``sea:`` / ``current:``

@@ -85,6 +85,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         spec = load_spec(a.spec)
         probe(spec)
+        for said in spec.notes:
+            print(f"bb2-campaign: note: {a.spec}: {said}", file=sys.stderr)
         for said in campaign_warnings(spec):
             print(f"bb2-campaign: warning: {a.spec}: {said}", file=sys.stderr)
         if a.only is not None and a.only >= spec.n_runs:

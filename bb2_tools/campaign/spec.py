@@ -21,7 +21,7 @@ from bb2_sim.outputs import plain_name
 from bb2_sim.yaml_files import load as load_yaml
 from bb2_tools.campaign.errors import SpecError
 
-__all__ = ["SpecError", "Vary", "CampaignSpec", "load_spec", "parse_spec", "run_seed", "set_dotted",
+__all__ = ["SpecError", "Vary", "CampaignSpec", "load_spec", "parse_spec", "run_seed", "set_dotted", "default_sea",
            "RESERVED_COLUMNS", "SAMPLING"]
 
 RESERVED_COLUMNS = ("index", "seed", "status", "message", "wall_time_s")
@@ -224,6 +224,7 @@ class CampaignSpec:
     description: str = ""
     spec_file: str | None = None
     graph_dir: str | None = None          #: --graph: each run flies the ROS graph, bags under this directory
+    notes: tuple[str, ...] = ()           #: what the campaign chose that the SPEC left open (default_sea)
     _unit: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     # -- the design
@@ -312,10 +313,51 @@ class CampaignSpec:
                  vary={v.key: v.to_doc() for v in self.vary}, collect=list(self.collect))
         if self.seed_key:
             d["seed_key"] = self.seed_key
+        if self.notes:
+            d["notes"] = list(self.notes)
         if self.graph_dir:
             d["graph"] = True
         d["runs"] = self.n_runs
         return d
+
+
+SEA_DEFAULT_SPECTRUM = {False: "pm", True: "jonswap"}
+"""The spectrum a campaign gives a sea whose Hs it varies and whose document names none, by whether a peak period
+is given (``sea.tp`` in the document or varied): Pierson-Moskowitz (fully developed: Hs alone fixes it) or JONSWAP."""
+
+
+def default_sea(base: dict[str, Any], vary: Sequence[Vary], seed_key: str | None
+                ) -> tuple[dict[str, Any], str | None, tuple[str, ...]]:
+    """The sea of a SPEC that varies ``sea.hs`` (say with ``sea.heading_deg``) on a mission or maneuver whose
+    document has no sea (a calm mission such as the canyon), or a ``sea:`` block naming no spectrum, component
+    list or sea state: without this, every run would be refused (``hs need a spectrum``).
+
+    The base document's sea becomes ``{spectrum: pm, hs: 0, ...}`` (``jonswap`` when a ``tp`` is given or varied;
+    Hs 0: the base alone is calm) and, unless the SPEC names a ``seed_key`` or the sea its ``seed``, each run's own
+    seed goes into ``sea.seed`` (``seed_key: sea.seed``), so every run flies its own wave phases -- what a Monte
+    Carlo of sea states needs.  Both choices are returned as notes (the CLI prints them; ``campaign.yaml`` keeps
+    them, and the resolved document and seed key are the ones stored).  Any other SPEC is returned unchanged:
+    a sea with a spectrum, components or a sea state is the document's own, and a SPEC varying only the sea's
+    direction keeps its error (a calm sea has no direction)."""
+    keys = {v.key for v in vary}
+    sea = base.get("sea")
+    if ("sea.hs" not in keys or "sea_state" in base or "sea_state" in keys
+            or (sea is not None and not isinstance(sea, Mapping))
+            or any(k in (sea or {}) for k in ("spectrum", "components", "sea_state"))
+            or keys & {"sea", "sea.spectrum", "sea.components", "sea.sea_state"}):
+        return base, seed_key, ()
+    sea = dict(sea or {})
+    spectrum = SEA_DEFAULT_SPECTRUM["tp" in sea or "sea.tp" in keys]
+    sea = {"spectrum": spectrum, **({"hs": 0.0} if "hs" not in sea else {}), **sea}
+    notes = [f"vary sets sea.hs and the {'sea block' if base.get('sea') is not None else 'document'} names no "
+             f"spectrum: the runs fly a {'Pierson-Moskowitz' if spectrum == 'pm' else 'JONSWAP'} sea "
+             f"(sea.spectrum: {spectrum}{', its Tp from Hs' if spectrum == 'pm' else ''}); set sea.spectrum "
+             "in the mission or the SPEC to choose another"]
+    if seed_key is None and "seed" not in sea and "sea.seed" not in keys:
+        seed_key = "sea.seed"
+        notes.append("each run flies its own wave phases: its seed goes into sea.seed (seed_key: sea.seed); "
+                     "set sea.seed or seed_key to choose")
+    return {**base, "sea": sea}, seed_key, tuple(notes)
 
 
 def _read_mission_document(file: Path) -> dict[str, Any]:
@@ -415,10 +457,11 @@ def parse_spec(doc: Any, *, spec_file: str | Path | None = None) -> CampaignSpec
         name = plain_name(doc.get("name") or (Path(spec_file).stem if spec_file else "campaign"), "name")
     except ValueError as exc:
         raise SpecError(str(exc)) from None
+    base, seed_key, notes = default_sea(base, vary, seed_key)
     spec = CampaignSpec(name=name, target=target, base=base, base_dir=base_dir, source=source,
                         maneuver=man_name, seed=seed, samples=samples, vary=vary, collect=tuple(collect),
                         sampling=sampling, seed_key=seed_key, description=str(doc.get("description", "")),
-                        spec_file=str(Path(spec_file).resolve()) if spec_file else None)
+                        spec_file=str(Path(spec_file).resolve()) if spec_file else None, notes=notes)
     if spec.n_runs > _MAX_RUNS:
         raise SpecError(f"samples x grid = {spec.n_runs} runs; at most {_MAX_RUNS}")
     return spec

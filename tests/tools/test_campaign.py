@@ -503,6 +503,83 @@ def test_a_maneuver_campaign_in_a_sea_and_a_current_flies_as_bb2_sim_maneuver(tm
     assert r3["peak_roll_deg"] == row["peak_roll_deg"]
 
 
+# the issue's own example SPEC, word for word: the canyon mission is calm (no sea block)
+ISSUE_SPEC = {
+    "mission": "missions/canyon.yaml",
+    "seed": 7,
+    "samples": 200,
+    "vary": {"sea.hs": {"uniform": [0.5, 3.5]}, "sea.heading_deg": {"choice": [0, 90, 180]},
+             "adaptation": [True, False], "duration_s": [120, 240]},
+    "collect": ["rms_vertical", "rms_horizontal", "min_clearance"],
+}
+
+
+def test_a_sea_varied_on_a_calm_mission_gets_a_spectrum_and_each_run_its_own_waves(tmp_path):
+    """Varying sea.hs on a mission without a sea (the issue's example on the calm canyon) was refused, every run
+    ('sea: heading_deg, hs need a spectrum'): the runs now fly a Pierson-Moskowitz sea of the drawn Hs (JONSWAP
+    when a Tp is given), each with its own wave phases (the run's seed in sea.seed), and the SPEC says so."""
+    import numpy as np
+
+    from bb2_sim.environment import sea_from_mapping
+    from bb2_tools.campaign.errors import SpecError
+    from bb2_tools.campaign.spec import run_seed
+    from bb2_tools.campaign.store import check_campaign_yaml, write_campaign_yaml
+    from bb2_tools.campaign.worker import probe
+
+    spec = parse_spec(ISSUE_SPEC)
+    probe(spec)   # was: SpecError 'vary (run 0): sea: heading_deg, hs need a spectrum'
+    assert spec.base["sea"] == {"spectrum": "pm", "hs": 0.0} and spec.seed_key == "sea.seed"
+    assert len(spec.notes) == 2 and "Pierson-Moskowitz" in spec.notes[0] and "sea.seed" in spec.notes[1]
+    waves = []
+    for i in (0, 2):   # the same draw (sample 0), adaptation true / false: the same Hs and heading, other seeds
+        sea = spec.document(i)["sea"]
+        assert sea["hs"] == spec.inputs(i)["sea.hs"] and sea["seed"] == run_seed(7, i), sea
+        w = sea_from_mapping(sea).wave_components()
+        assert np.all(np.degrees(w.direction) == sea["heading_deg"])
+        assert abs(4 * np.sqrt(np.sum(w.amplitude ** 2) / 2) / sea["hs"] - 1) < 0.01   # Hs = 4 sqrt(m0)
+        waves.append(w)
+    assert np.array_equal(waves[0].amplitude, waves[1].amplitude)
+    assert not np.array_equal(waves[0].phase, waves[1].phase)            # each run its own realisation
+    # the resolved campaign (its sea, seed key and notes) is what campaign.yaml keeps, and --resume accepts it
+    write_campaign_yaml(tmp_path, spec)
+    kept = yaml.safe_load((tmp_path / "campaign.yaml").read_text())["campaign"]
+    assert kept["mission_document"]["sea"] == spec.base["sea"] and kept["seed_key"] == "sea.seed"
+    assert kept["notes"] == list(spec.notes)
+    check_campaign_yaml(tmp_path, parse_spec(ISSUE_SPEC))
+
+    # a peak period given: JONSWAP; the SPEC's own seed key kept (and no note about it)
+    s = parse_spec({**ISSUE_SPEC, "seed_key": "initial.speed_mps",
+                    "vary": {**ISSUE_SPEC["vary"], "sea.tp": {"uniform": [6, 10]}}})
+    assert s.base["sea"]["spectrum"] == "jonswap" and s.seed_key == "initial.speed_mps" and len(s.notes) == 1
+    # a sea the mission defines is its own: nothing chosen (canyon_periscope_ss5 names its spectrum)
+    from bb2_mission.schema import MISSIONS_DIR, read_mission_document
+
+    s = parse_spec({"mission": "canyon_periscope_ss5", "vary": {"sea.hs": {"uniform": [1, 3]}}})
+    own = read_mission_document(MISSIONS_DIR / "canyon_periscope_ss5.yaml")["sea"]
+    assert not s.notes and s.seed_key is None and s.base["sea"] == own and own["spectrum"] == "jonswap", own
+    # a direction alone on a calm sea means nothing: still refused, naming the key
+    s = parse_spec({"mission": "missions/canyon.yaml", "vary": {"sea.heading_deg": {"choice": [0, 90]}}})
+    with pytest.raises(SpecError, match="heading_deg need a spectrum"):
+        probe(s)
+
+
+def test_the_issue_example_spec_flies_as_written(tmp_path):
+    """``bb2-campaign`` on the issue's example SPEC, unchanged: run 0 (120 s of the canyon in a sea of the drawn Hs
+    and heading) flies alone, its row under the SPEC's column names, and the notes say what sea it flew."""
+    f = _write_spec(tmp_path / "issue.yaml", ISSUE_SPEC)
+    r = _campaign(str(f), "--only", "0", "--out-run", str(tmp_path / "run0"))
+    assert r.returncode == 0, r.stderr
+    assert "note:" in r.stderr and "Pierson-Moskowitz" in r.stderr, r.stderr
+    with open(tmp_path / "run0" / "run.csv") as fh:
+        header = fh.readline().strip().replace('"', "").split(",")
+    assert header == ["index", "seed", *ISSUE_SPEC["vary"], *ISSUE_SPEC["collect"], "status", "message",
+                      "wall_time_s"]
+    row = pa.csv.read_csv(tmp_path / "run0" / "run.csv").to_pylist()[0]
+    assert row["status"] == "ok", row
+    assert 0.5 <= row["sea.hs"] < 3.5 and row["sea.heading_deg"] in (0, 90, 180) and row["duration_s"] == 120
+    assert 0 < row["rms_vertical"] < 5 and 0 < row["rms_horizontal"] < 5 and 30 < row["min_clearance"] < 60, row
+
+
 def test_a_campaign_over_the_sensor_noise_collects_the_navigation_figures(tmp_path):
     """Issue 12: a Monte Carlo over the sensor seed of a mission flown on the navigation filter; the figures are
     the runner's own, each run's seed its own sensor noise."""
