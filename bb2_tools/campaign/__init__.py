@@ -4,8 +4,9 @@ The SPEC (YAML; unknown keys are an error, every fault is one message naming the
 
     name: canyon_mc                      # default: the SPEC file's stem
     description: free text
-    mission: missions/canyon.yaml        # a mission file (beside the SPEC, in the working directory, or a
-                                         # name of missions/), ``extends`` merged; or instead:
+    mission: missions/canyon.yaml        # a mission file (beside the SPEC, in the working directory, or one of
+                                         # the project's missions/ -- canyon, canyon.yaml, missions/canyon.yaml --
+                                         # from any directory), ``extends`` merged; or instead:
     # maneuver: {name: turning-circle, options: {rudder_deg: 20, duration: 300}}
     seed: 7                              # campaign seed (integer >= 0; default 0)
     samples: 200                         # draws of the distributions (default 1); each is crossed with the grid

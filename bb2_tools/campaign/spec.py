@@ -378,8 +378,11 @@ def _find_mission(value: str, spec_dir: Path | None) -> Path:
 
     p = Path(value).expanduser()
     cands = [p] if p.is_absolute() else ([spec_dir / p] if spec_dir else []) + [Path.cwd() / p]
-    if p.suffix == "" and not p.is_absolute():
-        cands.append(MISSIONS_DIR / f"{value}.yaml")
+    if not p.is_absolute():   # the shipped missions, from any working directory: canyon, canyon.yaml, missions/...
+        if p.suffix == "":
+            cands.append(MISSIONS_DIR / f"{value}.yaml")
+        cands.append(MISSIONS_DIR / (Path(*p.parts[1:]) if len(p.parts) > 1 and p.parts[0] == MISSIONS_DIR.name
+                                     else p))
     for c in cands:
         if c.is_file():
             return c.resolve()

@@ -514,7 +514,7 @@ ISSUE_SPEC = {
 }
 
 
-def test_a_sea_varied_on_a_calm_mission_gets_a_spectrum_and_each_run_its_own_waves(tmp_path):
+def test_a_sea_varied_on_a_calm_mission_gets_a_spectrum_and_each_run_its_own_waves(tmp_path, monkeypatch):
     """Varying sea.hs on a mission without a sea (the issue's example on the calm canyon) was refused, every run
     ('sea: heading_deg, hs need a spectrum'): the runs now fly a Pierson-Moskowitz sea of the drawn Hs (JONSWAP
     when a Tp is given), each with its own wave phases (the run's seed in sea.seed), and the SPEC says so."""
@@ -526,6 +526,7 @@ def test_a_sea_varied_on_a_calm_mission_gets_a_spectrum_and_each_run_its_own_wav
     from bb2_tools.campaign.store import check_campaign_yaml, write_campaign_yaml
     from bb2_tools.campaign.worker import probe
 
+    monkeypatch.chdir(tmp_path)   # missions/canyon.yaml is the shipped one from any working directory
     spec = parse_spec(ISSUE_SPEC)
     probe(spec)   # was: SpecError 'vary (run 0): sea: heading_deg, hs need a spectrum'
     assert spec.base["sea"] == {"spectrum": "pm", "hs": 0.0} and spec.seed_key == "sea.seed"
@@ -561,6 +562,20 @@ def test_a_sea_varied_on_a_calm_mission_gets_a_spectrum_and_each_run_its_own_wav
     s = parse_spec({"mission": "missions/canyon.yaml", "vary": {"sea.heading_deg": {"choice": [0, 90]}}})
     with pytest.raises(SpecError, match="heading_deg need a spectrum"):
         probe(s)
+
+
+@pytest.mark.parametrize("example", sorted(p.name for p in (REPO / "examples" / "campaigns").glob("*.yaml")))
+def test_the_shipped_example_specs_hold(example, tmp_path, monkeypatch):
+    """The README's worked Monte Carlos: each example SPEC parses and its run 0 builds (the probe), as written,
+    from any working directory (its ``missions/...`` is the shipped mission)."""
+    from bb2_tools.campaign.spec import load_spec
+
+    monkeypatch.chdir(tmp_path)
+    from bb2_tools.campaign.worker import probe
+
+    spec = load_spec(REPO / "examples" / "campaigns" / example)
+    probe(spec)
+    assert spec.n_runs >= 24 and not spec.notes, (spec.n_runs, spec.notes)
 
 
 def test_the_issue_example_spec_flies_as_written(tmp_path):
