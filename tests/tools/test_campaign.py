@@ -549,9 +549,9 @@ def test_a_sea_varied_on_a_calm_mission_gets_a_spectrum_and_each_run_its_own_wav
     check_campaign_yaml(tmp_path, parse_spec(ISSUE_SPEC))
 
     # a peak period given: JONSWAP; the SPEC's own seed key kept (and no note about it)
-    s = parse_spec({**ISSUE_SPEC, "seed_key": "initial.speed_mps",
+    s = parse_spec({**ISSUE_SPEC, "seed_key": "sensors.seed",
                     "vary": {**ISSUE_SPEC["vary"], "sea.tp": {"uniform": [6, 10]}}})
-    assert s.base["sea"]["spectrum"] == "jonswap" and s.seed_key == "initial.speed_mps" and len(s.notes) == 1
+    assert s.base["sea"]["spectrum"] == "jonswap" and s.seed_key == "sensors.seed" and len(s.notes) == 1
     # a sea the mission defines is its own: nothing chosen (canyon_periscope_ss5 names its spectrum)
     from bb2_mission.schema import MISSIONS_DIR, read_mission_document
 
