@@ -335,13 +335,15 @@ def default_sea(base: dict[str, Any], vary: Sequence[Vary], seed_key: str | None
     The base document's sea becomes ``{spectrum: pm, hs: 0, ...}`` (``jonswap`` when a ``tp`` is given or varied;
     Hs 0: the base alone is calm) and, unless the SPEC names a ``seed_key`` or the sea its ``seed``, each run's own
     seed goes into ``sea.seed`` (``seed_key: sea.seed``), so every run flies its own wave phases -- what a Monte
-    Carlo of sea states needs.  Both choices are returned as notes (the CLI prints them; ``campaign.yaml`` keeps
+    Carlo of sea states needs.  A ``sea_state: 0`` (the authors' table, calm) is such a calm document, and goes.
+    Both choices are returned as notes (the CLI prints them; ``campaign.yaml`` keeps
     them, and the resolved document and seed key are the ones stored).  Any other SPEC is returned unchanged:
     a sea with a spectrum, components or a sea state is the document's own, and a SPEC varying only the sea's
     direction keeps its error (a calm sea has no direction)."""
     keys = {v.key for v in vary}
     sea = base.get("sea")
-    if ("sea.hs" not in keys or "sea_state" in base or "sea_state" in keys
+    calm_table = _is_num(base.get("sea_state")) and float(base["sea_state"]) == 0.0   # sea_state: 0, no sea
+    if ("sea.hs" not in keys or ("sea_state" in base and not calm_table) or "sea_state" in keys
             or (sea is not None and not isinstance(sea, Mapping))
             or any(k in (sea or {}) for k in ("spectrum", "components", "sea_state"))
             or keys & {"sea", "sea.spectrum", "sea.components", "sea.sea_state"}):
@@ -357,7 +359,7 @@ def default_sea(base: dict[str, Any], vary: Sequence[Vary], seed_key: str | None
         seed_key = "sea.seed"
         notes.append("each run flies its own wave phases: its seed goes into sea.seed (seed_key: sea.seed); "
                      "set sea.seed or seed_key to choose")
-    return {**base, "sea": sea}, seed_key, tuple(notes)
+    return {**{k: v for k, v in base.items() if k != "sea_state"}, "sea": sea}, seed_key, tuple(notes)
 
 
 def _read_mission_document(file: Path) -> dict[str, Any]:

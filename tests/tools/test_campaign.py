@@ -558,6 +558,15 @@ def test_a_sea_varied_on_a_calm_mission_gets_a_spectrum_and_each_run_its_own_wav
     s = parse_spec({"mission": "canyon_periscope_ss5", "vary": {"sea.hs": {"uniform": [1, 3]}}})
     own = read_mission_document(MISSIONS_DIR / "canyon_periscope_ss5.yaml")["sea"]
     assert not s.notes and s.seed_key is None and s.base["sea"] == own and own["spectrum"] == "jonswap", own
+    # a mission file's own sea_state: 0 (the authors' table, calm) is calm too, and goes (the schema takes a
+    # sea_state or a sea block, not both)
+    calm0 = _write_spec(tmp_path / "calm0.yaml", {**read_mission_document(MISSIONS_DIR / "canyon.yaml"),
+                                                  "sea_state": 0})
+    s = parse_spec({"mission": str(calm0), "vary": {"sea.hs": [1.0, 2.0]}})
+    assert s.notes and "sea_state" not in s.base and s.base["sea"]["spectrum"] == "pm"
+    probe(s)
+    s = parse_spec({"mission": str(calm0), "vary": {"sea.hs": [1.0, 2.0], "sea_state": 0}})   # varied: its own
+    assert not s.notes and s.base["sea_state"] == 0
     # a direction alone on a calm sea means nothing: still refused, naming the key
     s = parse_spec({"mission": "missions/canyon.yaml", "vary": {"sea.heading_deg": {"choice": [0, 90]}}})
     with pytest.raises(SpecError, match="heading_deg need a spectrum"):
