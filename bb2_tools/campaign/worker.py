@@ -198,6 +198,49 @@ def batched(spec: CampaignSpec) -> bool:
     return spec.target in ("maneuver", "mission") and not spec.graph_dir
 
 
+def _mission_item(spec: CampaignSpec, i: int) -> tuple[Any, Any]:
+    """Run ``i``'s mission and its batch group (hull, profile, substeps), or None when it flies alone
+    (:func:`bb2_mission.batch.batch_refusal`: a sea other than the authors' table, a current, navigation on
+    sensors)."""
+    from bb2_mission.batch import batch_refusal
+
+    m = build_mission(spec, spec.document(i))
+    return m, ((str(m.hull), str(m.profile), m.substeps) if batch_refusal(m) is None else None)
+
+
+def _maneuver_item(spec: CampaignSpec, i: int) -> tuple[Any, Any]:
+    """Run ``i``'s maneuver settings and its batch group (profile, duration, substeps), or None in a sea or current
+    of its own (flown alone)."""
+    s = maneuver_settings_of(spec, spec.document(i))
+    return s, ((s.profile, s.duration, s.substeps) if s.environment is None else None)
+
+
+BATCH_SAMPLE = 8
+"""Runs looked at, spread over the campaign, to tell whether any of them can fly in a batch (:func:`may_batch`)."""
+
+
+def may_batch(spec: CampaignSpec, sample: int = BATCH_SAMPLE) -> bool:
+    """Whether the runs of ``spec`` may fly together (:func:`batched`) and any of ``sample`` runs spread over the
+    campaign (the first, the last, evenly between) has a batch group.  A campaign whose runs all fly alone (a
+    spectrum sea, a current: :func:`bb2_mission.batch.batch_refusal`) gains nothing from chunks of many runs and
+    would hold each finished run in its worker until the whole chunk is done: the engines then send its runs one
+    by one (:func:`bb2_tools.campaign.engines.chunk_size`), so each lands, and counts in the progress, as it
+    finishes.  Remembered on the spec."""
+    if spec._may_batch is None:
+        n, item_of = spec.n_runs, (_mission_item if spec.target == "mission" else _maneuver_item)
+        found = False
+        if batched(spec) and n > 0:
+            for i in sorted({round(k * (n - 1) / max(1, sample - 1)) for k in range(min(sample, n))}):
+                try:
+                    found = item_of(spec, i)[1] is not None
+                except Exception:  # noqa: BLE001 -- a run that does not build: its row says why, later
+                    continue
+                if found:
+                    break
+        spec._may_batch = found
+    return spec._may_batch
+
+
 def _batches(groups: dict[Any, list[tuple[int, Any]]], run_bytes) -> list[list[tuple[int, Any]]]:
     """The groups cut into batches of at least :data:`BATCH_MIN` runs and at most :data:`BATCH_MEMORY_BYTES` of
     trajectories (``run_bytes(key, group)``: the most one run of the group holds); a group too small for a batch
@@ -227,10 +270,7 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
         from bb2_mission.records import MISSION_COLUMNS
 
         def mission_of(i: int) -> Any:
-            from bb2_mission.batch import batch_refusal
-
-            m = build_mission(spec, spec.document(i))
-            return m, ((str(m.hull), str(m.profile), m.substeps) if batch_refusal(m) is None else None)
+            return _mission_item(spec, i)
 
         def fly_missions(ms: list[Any]) -> list[Any]:
             from bb2_mission.batch import run_missions_batch
@@ -246,8 +286,7 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
     from bb2_sim.maneuvers import OUTPUT_COLUMNS
 
     def maneuver_of(i: int) -> Any:
-        s = maneuver_settings_of(spec, spec.document(i))
-        return s, ((s.profile, s.duration, s.substeps) if s.environment is None else None)
+        return _maneuver_item(spec, i)
 
     def fly_maneuvers(settings: list[Any]) -> list[Any]:
         from bb2_sim.batch.maneuvers import run_maneuvers_batch

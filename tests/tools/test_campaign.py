@@ -878,6 +878,29 @@ def test_chunks_are_equal_batches_to_the_end():
     assert chunk_size(spec, 0, 2) == 1
 
 
+def test_runs_that_cannot_fly_in_a_batch_go_out_one_by_one():
+    """A campaign none of whose runs can fly in a batch (a spectrum sea, a current) was cut into chunks of up to
+    --batch runs like any other, and each worker flew its chunk's runs one after the other and handed them over
+    together: 32 canyon runs in a sea landed, and counted in the progress bar, all at once after six minutes, and a
+    SIGKILL before that lost every finished one.  Such runs now go out one by one; a campaign whose runs can batch,
+    or some of them can (a current varied), keeps its chunks."""
+    from bb2_tools.campaign.engines import chunk_size
+
+    vary = MISSION_BATCH_SPEC["vary"]
+    assert chunk_size(parse_spec(MISSION_BATCH_SPEC), 64, 2, 128) == 32
+    assert chunk_size(parse_spec({**MISSION_BATCH_SPEC, "vary": {**vary, "current.speed_mps": 0.3}}), 64, 2, 128) == 1
+    sea = {**MISSION_BATCH_SPEC, "vary": {**{k: v for k, v in vary.items() if k != "sea_state"},
+                                         "sea.hs": {"uniform": [1.0, 3.0]}}}      # the default PM sea
+    assert chunk_size(parse_spec(sea), 64, 2, 128) == 1
+    mixed = parse_spec({**MISSION_BATCH_SPEC, "vary": {**vary, "current.speed_mps": [0.0, 0.5]}})
+    assert chunk_size(mixed, 64, 2, 128) == 32
+    man = {"maneuver": {"name": "turning-circle", "options": {"duration": 5}}, "samples": 64,
+           "vary": {"rudder_deg": {"uniform": [10, 30]}}}
+    assert chunk_size(parse_spec(man), 64, 2, 128) == 32
+    man_sea = {**man, "vary": {**man["vary"], "sea.hs": {"uniform": [1, 2]}}}
+    assert chunk_size(parse_spec(man_sea), 64, 2, 128) == 1
+
+
 def test_a_chunk_of_missions_flies_as_one_batch(monkeypatch):
     """``run_tasks``: the missions of a chunk fly together (no single run), rows as the single runs give them."""
     from bb2_tools.campaign import worker
