@@ -19,7 +19,7 @@ message (``bb2-campaign`` does).
 from __future__ import annotations
 
 import time
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -77,12 +77,19 @@ class _RecordView:
         self.act = act
 
 
-def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[MissionResult]:
+PROGRESS_EVERY_TICKS = 50
+"""How often (batch ticks) :func:`run_missions_batch` tells its ``on_progress``."""
+
+
+def run_missions_batch(missions: Sequence[Mission], model: Any = None, *,
+                       on_progress: Callable[[float], None] | None = None) -> list[MissionResult]:
     """Fly ``missions`` together (see the module docstring); one result per mission, in order.
 
     ``model``: the ROM (:class:`bb2_sim.model.BB2Model`, calm) of their hull and profile; default built from the
-    first mission's.  Raises ValueError if a mission cannot fly in a batch (:func:`batch_refusal`) or the missions
-    differ in hull or profile."""
+    first mission's.  ``on_progress(done)``, every :data:`PROGRESS_EVERY_TICKS` ticks and at the end: how many
+    missions' worth of ticks are flown (each mission's ticks over its most, an ended one 1; ``len(missions)`` at
+    the end) -- a campaign's progress bar between the batch's start and its rows.  Raises ValueError if a mission
+    cannot fly in a batch (:func:`batch_refusal`) or the missions differ in hull or profile."""
     from bb2_control.stacks import prepare_stacks
     from bb2_sim.batch import BatchModel, BatchSimulator
     from bb2_sim.model import BB2Model
@@ -118,7 +125,13 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[M
     planes = np.zeros((len(M), 5))
     rps = np.zeros(len(M))
     running = list(range(len(M)))
+    loops = 0
     while running:
+        if on_progress is not None and loops % PROGRESS_EVERY_TICKS == 0:
+            live = set(running)
+            on_progress(sum(min(1.0, views[i].n / max(1, runners[i].n_steps)) if i in live else 1.0
+                            for i in range(len(M))))
+        loops += 1
         ticks: dict[int, Any] = {}
         clear = _clearances(runners, running, terrains)
         states = [VehicleState.from_vector(runners[i].sim.t, runners[i].sim.x) for i in running]
@@ -153,6 +166,8 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None) -> list[M
         if done:
             sim.retire(done)
         running = [i for i in running if not runners[i].done]
+    if on_progress is not None:
+        on_progress(float(len(M)))
     wall = (time.perf_counter() - t0) / len(M)
     out = []
     for r, rr in zip(runners, rows):

@@ -8,7 +8,7 @@ sea state (the authors' table). Maneuvers with an ``environment`` (irregular sea
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -152,8 +152,13 @@ def _log_rows(rec, rows: np.ndarray, params, seas: list) -> np.ndarray:
     return out
 
 
+PROGRESS_EVERY_STEPS = 100
+"""How often (steps) :func:`run_maneuvers_batch` tells its ``on_progress``."""
+
+
 def run_maneuvers_batch(settings: Sequence[ManeuverSettings], model: BB2Model | None = None, *,
-                        hull_mesh: str | None = None, log_every: int = 2, exact: bool = True) -> list:
+                        hull_mesh: str | None = None, log_every: int = 2, exact: bool = True,
+                        on_progress: Callable[[float], None] | None = None) -> list:
     """Fly the maneuvers ``settings`` together, one boat each: the batch twin of
     :func:`bb2_sim.maneuvers.run_maneuver`, returning one :class:`~bb2_sim.maneuvers.ManeuverResult` per boat
     (its trajectory, reversals and divergence as that function gives them; ``exact``: bit for bit, see
@@ -161,7 +166,9 @@ def run_maneuvers_batch(settings: Sequence[ManeuverSettings], model: BB2Model | 
     the longest).  A boat that diverges stops in the same step as alone, but its error says what the batch saw (a
     non-finite stage or state), where the single run may name the exception that made it (float division by
     zero).  The wall time of each result is its share of the batch's.  Same restrictions as
-    :func:`batch_for_maneuvers` (one physics profile, the authors' sea states, no environment)."""
+    :func:`batch_for_maneuvers` (one physics profile, the authors' sea states, no environment).
+    ``on_progress(done)``, every :data:`PROGRESS_EVERY_STEPS` steps and at the end: how many maneuvers' worth of
+    steps are flown (each boat's steps over its own, a diverged one 1; ``len(settings)`` at the end)."""
     import time
 
     from ..maneuvers import OUTPUT_COLUMNS, ManeuverResult
@@ -179,6 +186,8 @@ def run_maneuvers_batch(settings: Sequence[ManeuverSettings], model: BB2Model | 
     last_t = np.full(len(S), np.nan)                 # the time of each boat's last commanded step
     errors: dict = {}
     for k in range(int(n_steps.max()) + 1):
+        if on_progress is not None and k % PROGRESS_EVERY_STEPS == 0:
+            on_progress(float(np.sum(np.where(sim.diverged, 1.0, np.minimum(k, n_steps) / np.maximum(n_steps, 1)))))
         planes, rps = cmd.step(sim.t, sim.x)
         live = (k <= n_steps) & ~sim.diverged
         last_t[live] = sim.t
@@ -197,6 +206,8 @@ def run_maneuvers_batch(settings: Sequence[ManeuverSettings], model: BB2Model | 
             for j, b in enumerate(rec.boats[rows]):
                 traj[b][logged[b]] = block[j]
                 logged[b] += 1
+    if on_progress is not None:
+        on_progress(float(len(S)))
     wall = (time.perf_counter() - t0) / len(S)
     out = []
     for b, s in enumerate(S):

@@ -209,7 +209,7 @@ def _run_campaign(spec: Any, out: Path, a: argparse.Namespace) -> int:
     interrupted = False
     try:
         if todo:
-            engine.run(spec, todo, on_row, prog.draw)
+            engine.run(spec, todo, on_row, prog.flying_now)
     except KeyboardInterrupt:
         interrupted = True
     except SpecError as e:

@@ -30,21 +30,29 @@ _PRELOAD = ["bb2_tools.campaign.worker", "bb2_mission.runner", "bb2_mission.sche
             "bb2_sim.metrics", "scipy.spatial", "scipy.special"]
 
 OnRow = Callable[[dict[str, Any]], None]
-OnTick = Callable[[], None]
+OnTick = Callable[..., None]
+"""Called about twice a second while runs fly: ``on_tick(flying)``, the runs' worth flown by the chunks in flight
+that have not landed yet (the local engine, from its workers; 0 where an engine cannot tell, Ray)."""
 
 # ------------------------------------------------------------------------------------------ local
 _SPEC: CampaignSpec | None = None
+_FLYING: Any = None     # the pool's shared array: per slot of the window, the runs' worth its chunk has flown
 
 
-def _init_worker(spec: CampaignSpec) -> None:
-    global _SPEC
-    _SPEC = spec
+def _init_worker(spec: CampaignSpec, flying: Any = None) -> None:
+    global _SPEC, _FLYING
+    _SPEC, _FLYING = spec, flying
     os.environ.setdefault("MPLBACKEND", "Agg")
 
 
-def _local_task(indices: list[int]) -> list[dict[str, Any]]:
+def _local_task(indices: list[int], slot: int = -1) -> list[dict[str, Any]]:
     assert _SPEC is not None
-    return run_tasks(_SPEC, indices)
+    flying = _FLYING
+
+    def on_progress(done: float) -> None:
+        flying[slot] = done
+
+    return run_tasks(_SPEC, indices, on_progress if flying is not None and slot >= 0 else None)
 
 
 def chunk_size(spec: CampaignSpec, total: int, workers: int, batch: int = DEFAULT_BATCH) -> int:
@@ -97,21 +105,26 @@ class LocalEngine:
         pending = collections.deque(indices)
         attempts: collections.Counter[int] = collections.Counter()
         window = 2 * self.workers
+        flying = ctx.Array("d", window, lock=False)   # what each slot's chunk has flown (run_tasks' on_progress)
         while pending:
             broken = False
             size = chunk_size(spec, len(pending), self.workers, self.batch)
+            flying[:] = [0.0] * window
+            free = list(range(window))
+            slots: dict[Any, int] = {}
             with ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_init_worker,
-                                     initargs=(spec,)) as pool:
+                                     initargs=(spec, flying)) as pool:
                 inflight: dict[Any, list[int]] = {}
                 while (pending or inflight) and not broken:
                     while pending and len(inflight) < window:
                         chunk = _take(pending, size)
                         try:
-                            inflight[pool.submit(_local_task, chunk)] = chunk
+                            f = pool.submit(_local_task, chunk, free[-1])
                         except BrokenProcessPool:
                             pending.extendleft(reversed(chunk))
                             broken = True
                             break
+                        inflight[f], slots[f] = chunk, free.pop()
                     if not inflight:
                         break
                     done, _ = wait(list(inflight), timeout=0.5, return_when=FIRST_COMPLETED)
@@ -124,8 +137,10 @@ class LocalEngine:
                         why = "" if exc is None else " ".join(f"{type(exc).__name__}: {exc}".split())[:2000]
                         for row in (f.result() if exc is None else [_lost_row(spec, i, why) for i in chunk]):
                             on_row(row)
+                        flying[slots[f]] = 0.0
+                        free.append(slots.pop(f))
                     if on_tick:
-                        on_tick()
+                        on_tick(0.0 if broken else sum(flying[k] for k in slots.values()))
                 if broken:   # a worker died: fly what was in flight again (a run at three deaths is an error)
                     for f, chunk in sorted(inflight.items(), key=lambda fc: -fc[1][0]):
                         if f.done() and f.exception() is None:
@@ -271,7 +286,7 @@ class RayEngine:
                 for row in rows:
                     on_row(row)
             if on_tick:
-                on_tick()
+                on_tick(0.0)
 
     def shutdown(self) -> None:
         try:

@@ -254,7 +254,8 @@ def _batches(groups: dict[Any, list[tuple[int, Any]]], run_bytes) -> list[list[t
     return batches
 
 
-def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]]:
+def run_tasks(spec: CampaignSpec, indices: Sequence[int], on_progress: Callable[[float], None] | None = None
+              ) -> list[dict[str, Any]]:
     """The results rows of runs ``indices`` (what the engines call for a chunk of runs; never raises).
 
     Runs that can fly together, at least :data:`BATCH_MIN` of them, fly as one batch of the batch ROM in its exact
@@ -264,7 +265,8 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
     ``substeps`` in the authors' sea states, without current, flying on the truth, with
     :func:`bb2_mission.batch.run_missions_batch` (each mission's stack still steps alone).  A run that diverged in
     the batch is flown again alone (its message is then the single run's), and so is every other run.  Each row's
-    wall time is its share of its batch's."""
+    wall time is its share of its batch's.  ``on_progress(done)``: how many runs' worth of the chunk are flown so far
+    (a batch's boats by their ticks, a run alone when it ends), never decreasing, ``len(indices)`` at most."""
     install_worker_caches()
     if spec.target == "mission":
         from bb2_mission.records import MISSION_COLUMNS
@@ -272,39 +274,50 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int]) -> list[dict[str, Any]
         def mission_of(i: int) -> Any:
             return _mission_item(spec, i)
 
-        def fly_missions(ms: list[Any]) -> list[Any]:
+        def fly_missions(ms: list[Any], on_progress: Callable[[float], None] | None) -> list[Any]:
             from bb2_mission.batch import run_missions_batch
 
-            return run_missions_batch(ms)
+            return run_missions_batch(ms, on_progress=on_progress)
 
         return _fly_together(
             spec, indices, mission_of, fly_missions,
             # a row per 0.05 s tick of the group's longest mission
             run_bytes=lambda _key, group: (max(m.duration for _, m in group) / 0.05 + 2) * len(MISSION_COLUMNS) * 8,
             diverged=lambda res: str(res.summary.end_reason) == "diverged",
-            outcome=lambda _m, res: _mission_outcome(spec, res), wall_s=lambda res: res.summary.wall_time_s)
+            outcome=lambda _m, res: _mission_outcome(spec, res), wall_s=lambda res: res.summary.wall_time_s,
+            on_progress=on_progress)
     from bb2_sim.maneuvers import OUTPUT_COLUMNS
 
     def maneuver_of(i: int) -> Any:
         return _maneuver_item(spec, i)
 
-    def fly_maneuvers(settings: list[Any]) -> list[Any]:
+    def fly_maneuvers(settings: list[Any], on_progress: Callable[[float], None] | None) -> list[Any]:
         from bb2_sim.batch.maneuvers import run_maneuvers_batch
 
-        return run_maneuvers_batch(settings)
+        return run_maneuvers_batch(settings, on_progress=on_progress)
 
     return _fly_together(
         spec, indices, maneuver_of, fly_maneuvers,
         run_bytes=lambda key, _group: (key[1] / 0.1 + 1) * len(OUTPUT_COLUMNS) * 8,
         diverged=lambda res: res.error is not None,
-        outcome=lambda s, res: _maneuver_outcome(spec, s, res), wall_s=lambda res: res.wall_time_s)
+        outcome=lambda s, res: _maneuver_outcome(spec, s, res), wall_s=lambda res: res.wall_time_s,
+        on_progress=on_progress)
 
 
 def _fly_together(spec: CampaignSpec, indices: Sequence[int], item_of, fly, *, run_bytes, diverged, outcome,
-                  wall_s) -> list[dict[str, Any]]:
+                  wall_s, on_progress: Callable[[float], None] | None = None) -> list[dict[str, Any]]:
     """:func:`run_tasks` on its kind's pieces: ``item_of(index)`` -> (the run's item, its batch group key or None to
-    fly it alone), ``fly(items)`` -> their results together, ``run_bytes`` (see :func:`_batches`), ``diverged(res)``
-    (then flown again alone), ``outcome(item, res)`` -> (status, message, figures), ``wall_s(res)``."""
+    fly it alone), ``fly(items, on_progress)`` -> their results together, ``run_bytes`` (see :func:`_batches`),
+    ``diverged(res)`` (then flown again alone), ``outcome(item, res)`` -> (status, message, figures),
+    ``wall_s(res)``."""
+    told = 0.0
+
+    def tell(done: float) -> None:
+        nonlocal told
+        if on_progress is not None and done > told:
+            told = min(float(len(indices)), done)
+            on_progress(told)
+
     rows: dict[int, dict[str, Any]] = {}
     groups: dict[Any, list[tuple[int, Any]]] = {}
     if batched(spec) and len(indices) >= BATCH_MIN:
@@ -316,8 +329,9 @@ def _fly_together(spec: CampaignSpec, indices: Sequence[int], item_of, fly, *, r
             if key is not None:
                 groups.setdefault(key, []).append((int(i), item))
     for batch in _batches(groups, run_bytes):
+        before = len(rows)
         try:
-            results = fly([item for _, item in batch])
+            results = fly([item for _, item in batch], lambda done, before=before: tell(before + done))
         except Exception:  # noqa: BLE001 -- the batch refused or failed: every run alone below
             continue
         for (i, item), res in zip(batch, results):
@@ -330,7 +344,15 @@ def _fly_together(spec: CampaignSpec, indices: Sequence[int], item_of, fly, *, r
                 continue
             rows[i] = _row_outcome(_row_inputs(spec, i), figures, status, message,
                                    wall_s(res) + time.perf_counter() - t1)
-    return [rows[int(i)] if int(i) in rows else run_task(spec, i) for i in indices]
+    out, alone = [], 0
+    for i in indices:
+        if int(i) in rows:
+            out.append(rows[int(i)])
+            continue
+        out.append(run_task(spec, i))
+        alone += 1
+        tell(len(rows) + alone)
+    return out
 
 
 # ------------------------------------------------------------------------------------------ probing

@@ -54,7 +54,11 @@ def test_missions_flown_together_give_each_what_it_gives_alone(tmp_path):
         _mission(tmp_path, "straight", "straight", duration_s=7.0),
     ]
     assert all(batch_refusal(m) is None for m in ms)
-    together = run_missions_batch(ms)
+    told: list[float] = []
+    together = run_missions_batch(ms, on_progress=told.append)
+    # what a campaign's progress bar counts while the batch flies: missions' worth of ticks, from 0 to all of them
+    assert told[0] == 0.0 and told[-1] == len(ms) and told == sorted(told), told
+    assert any(0 < v < len(ms) for v in told), told
     ends = []
     for m, b in zip(ms, together):
         a = run_mission(m)

@@ -344,7 +344,11 @@ def test_maneuvers_flown_together_give_each_run_maneuver_result(calm_model, subs
     settings = [replace(s, substeps=substeps) for s in settings]
     with pytest.raises(ValueError, match="share one substeps"):
         batch_for_maneuvers([settings[0], replace(settings[1], substeps=substeps + 1)], calm_model)
-    batch = run_maneuvers_batch(settings, calm_model)
+    told: list[float] = []
+    batch = run_maneuvers_batch(settings, calm_model, on_progress=told.append)
+    # a campaign's progress while the batch flies: maneuvers' worth of steps (the diverged boat 1 at once), to all
+    assert told[0] == 0.0 and told[-1] == len(settings) and told == sorted(told), told
+    assert any(1 <= v < len(settings) - 1 for v in told), told
     for s, b in zip(settings, batch):
         one = run_maneuver(s, _single(calm_model, s.sea_state))
         assert b.settings is s and list(b.traj) == OUTPUT_COLUMNS

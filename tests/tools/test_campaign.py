@@ -901,6 +901,33 @@ def test_runs_that_cannot_fly_in_a_batch_go_out_one_by_one():
     assert chunk_size(parse_spec(man_sea), 64, 2, 128) == 1
 
 
+def test_the_progress_bar_counts_what_the_batches_in_flight_have_flown():
+    """Runs flown together land together, when their chunk ends: a 1,000-run calm canyon campaign showed 0/1000 and
+    no ETA for over two minutes, then jumped by 125.  The local engine's workers now tell the driver what their
+    chunk has flown (a batch's boats by their ticks), the bar, rate and ETA count it, and the line says it."""
+    import io
+
+    from bb2_tools.campaign.engines import LocalEngine
+    from bb2_tools.campaign.progress import Progress
+
+    bar = Progress(10, stream=io.StringIO())
+    bar.flying_now(2.5)
+    assert "0/10 (+2.5 in flight)  25.0%" in bar.line()
+    bar.update("ok")                     # a run landed: it was in flight, the count moves from there to the results
+    assert "1/10 (+1.5 in flight)  25.0%" in bar.line() and bar.rate > 0
+
+    spec = parse_spec({"mission": "canyon", "seed": 5, "samples": 16,
+                       "vary": {"duration_s": 60, "stack.guidance.d_m": {"uniform": [150.0, 350.0]}},
+                       "collect": ["rms_vertical"]})
+    ticks: list[tuple[int, float]] = []
+    rows: list[dict] = []
+    LocalEngine(1).run(spec, range(16), rows.append, lambda flying=0.0: ticks.append((len(rows), flying)))
+    assert sorted(r["index"] for r in rows) == list(range(16)) and {r["status"] for r in rows} == {"ok"}
+    before = [f for n, f in ticks if n == 0]              # one chunk of 16, flown together: before it lands
+    assert any(0 < f < 16 for f in before), ticks
+    assert before == sorted(before) and all(f == 0 for n, f in ticks if n == 16), ticks
+
+
 def test_a_chunk_of_missions_flies_as_one_batch(monkeypatch):
     """``run_tasks``: the missions of a chunk fly together (no single run), rows as the single runs give them."""
     from bb2_tools.campaign import worker
