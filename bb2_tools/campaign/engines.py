@@ -32,7 +32,7 @@ _PRELOAD = ["bb2_tools.campaign.worker", "bb2_mission.runner", "bb2_mission.sche
 OnRow = Callable[[dict[str, Any]], None]
 OnTick = Callable[..., None]
 """Called about twice a second while runs fly: ``on_tick(flying)``, the runs' worth flown by the chunks in flight
-that have not landed yet (the local engine, from its workers; 0 where an engine cannot tell, Ray)."""
+that have not landed yet (from the workers: the local pool through a shared array, Ray through an actor)."""
 
 # ------------------------------------------------------------------------------------------ local
 _SPEC: CampaignSpec | None = None
@@ -171,6 +171,32 @@ def _last_ray_cluster() -> str:
         return ""
 
 
+class _FlyingSink:
+    """A Ray actor (no CPU): what each chunk in flight has flown (``run_tasks``' ``on_progress``, by chunk key)."""
+
+    def __init__(self) -> None:
+        self.done: dict[int, float] = {}
+
+    def set(self, key: int, done: float) -> None:
+        self.done[key] = done
+
+    def drop(self, key: int) -> None:
+        self.done.pop(key, None)
+
+    def total(self, keys: list[int]) -> float:
+        """Of the chunks still in flight only (a report that arrives after its chunk landed is not counted)."""
+        return float(sum(self.done.get(k, 0.0) for k in keys))
+
+
+def _ray_task(spec: CampaignSpec, indices: list[int], sink: Any = None, key: int = -1) -> list[dict[str, Any]]:
+    """A Ray task: :func:`run_tasks`, telling ``sink`` (a :class:`_FlyingSink` actor) what the chunk has flown."""
+
+    def on_progress(done: float) -> None:
+        sink.set.remote(key, done)
+
+    return run_tasks(spec, indices, on_progress if sink is not None else None)
+
+
 class RayEngine:
     """Ray tasks (1 CPU each) on a running cluster (``address`` = ``auto`` or ``HOST:PORT``) or, with no
     address, on a Ray instance started for this driver.  ``workers`` caps the runs in flight (default: twice
@@ -265,28 +291,53 @@ class RayEngine:
 
     def run(self, spec: CampaignSpec, indices: Iterable[int], on_row: OnRow, on_tick: OnTick | None = None) -> None:
         ray = self._connect()
-        task = ray.remote(num_cpus=1, max_retries=_MAX_ATTEMPTS - 1)(run_tasks)
+        task = ray.remote(num_cpus=1, max_retries=_MAX_ATTEMPTS - 1)(_ray_task)
         spec_ref = ray.put(spec)
         window = int(self.workers) if self.workers else 2 * max(1, self._cpus)
         pending = collections.deque(indices)
         inflight: dict[Any, list[int]] = {}
         size = chunk_size(spec, len(pending), max(1, self._cpus), self.batch)
-        while pending or inflight:
-            while pending and len(inflight) < window:
-                chunk = _take(pending, size)
-                inflight[task.remote(spec_ref, chunk)] = chunk
-            done, _ = ray.wait(list(inflight), num_returns=1, timeout=0.5)
-            for ref in done:
-                chunk = inflight.pop(ref)
+        sink = ray.remote(num_cpus=0)(_FlyingSink).remote() if on_tick and size > 1 else None
+        keys: dict[Any, int] = {}   # each chunk's key in the sink
+        serial = 0
+        try:
+            while pending or inflight:
+                while pending and len(inflight) < window:
+                    chunk = _take(pending, size)
+                    ref = task.remote(spec_ref, chunk, sink, serial)
+                    inflight[ref], keys[ref] = chunk, serial
+                    serial += 1
+                done, _ = ray.wait(list(inflight), num_returns=1, timeout=0.5)
+                for ref in done:
+                    chunk = inflight.pop(ref)
+                    try:
+                        rows = ray.get(ref)
+                    except Exception as e:  # noqa: BLE001 -- worker died through the retries, object lost, ...
+                        rows = [_lost_row(spec, i, " ".join(f"ray: {type(e).__name__}: {e}".split())[:2000])
+                                for i in chunk]
+                    for row in rows:
+                        on_row(row)
+                    if sink is not None:
+                        sink.drop.remote(keys[ref])
+                    del keys[ref]
+                if on_tick:
+                    on_tick(self._flying(ray, sink, list(keys.values())))
+        finally:
+            if sink is not None:
                 try:
-                    rows = ray.get(ref)
-                except Exception as e:  # noqa: BLE001 -- worker died through the retries, object lost, ...
-                    rows = [_lost_row(spec, i, " ".join(f"ray: {type(e).__name__}: {e}".split())[:2000])
-                            for i in chunk]
-                for row in rows:
-                    on_row(row)
-            if on_tick:
-                on_tick(0.0)
+                    ray.kill(sink)
+                except Exception:  # noqa: BLE001 -- the cluster gone: the actor went with it
+                    pass
+
+    @staticmethod
+    def _flying(ray: Any, sink: Any, keys: list[int]) -> float:
+        """What the chunks in flight have flown (0 with no sink, or if it does not answer within a second)."""
+        if sink is None or not keys:
+            return 0.0
+        try:
+            return float(ray.get(sink.total.remote(keys), timeout=1.0))
+        except Exception:  # noqa: BLE001 -- a progress figure is not worth failing a campaign
+            return 0.0
 
     def shutdown(self) -> None:
         try:

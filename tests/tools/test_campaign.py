@@ -752,6 +752,27 @@ def test_ray_flies_maneuver_batches_as_the_local_pool(maneuver_batched, ray_clus
     assert _comparable(_table(tmp_path / "ray")) == _comparable(_table(batched))
 
 
+def test_ray_counts_what_its_batches_in_flight_have_flown(ray_cluster):
+    """On Ray too the progress counts what the chunks in flight have flown (their tasks tell an actor), before
+    their runs land together: two chunks of 16 missions, one on each node."""
+    from bb2_tools.campaign.engines import RayEngine
+
+    spec = parse_spec({"mission": "canyon", "seed": 5, "samples": 32,
+                       "vary": {"duration_s": 60, "stack.guidance.d_m": {"uniform": [150.0, 350.0]}},
+                       "collect": ["rms_vertical"]})
+    engine = RayEngine(None, ray_cluster)
+    ticks: list[tuple[int, float]] = []
+    rows: list[dict] = []
+    try:
+        engine.prepare()
+        engine.run(spec, range(32), rows.append, lambda flying=0.0: ticks.append((len(rows), flying)))
+    finally:
+        engine.shutdown()
+    assert sorted(r["index"] for r in rows) == list(range(32)) and {r["status"] for r in rows} == {"ok"}
+    assert any(n == 0 and 0 < f < 32 for n, f in ticks), ticks
+    assert ticks[-1] == (32, 0.0), ticks
+
+
 def _spy_single_runs(monkeypatch, worker) -> tuple[list[int], object]:
     """Records the runs ``worker.run_tasks`` flies alone (through ``run_task``); returns (that list, the original
     ``run_task``)."""
