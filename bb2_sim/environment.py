@@ -13,7 +13,8 @@ simulator node) parsed and validated, built into the ROM's :class:`~bb2_sim.sea.
     heading_deg:  direction the waves travel towards, native earth frame, deg (0 = +x_E, the authors' head
                   seas at psi = 0; 90 = +y_E); default 0
     spreading_s:  cos-2s spreading exponent s (> 0) about heading_deg: short-crested; none = long-crested
-    components:   N components of the spectrum (integer >= 1, default 64), or a CSV component list
+    components:   N components of the spectrum (integer >= 1, default 64; with no spectrum refused, as hs is,
+                  since it would change nothing), or a CSV component list
                   (amplitude_m, omega_rad_s, direction_deg, phase_deg; no spectrum then), or the exact
                   mapping {amplitude_m, omega_rad_s, direction_rad, phase_rad} of lists (what a bag carries)
     seed:         seed of the random phases (and jitter, directions), integer, default 0
@@ -286,6 +287,8 @@ def sea_from_mapping(doc: Mapping[str, Any] | None, *, where: str = "sea", base_
     if given and "spectrum" in kw:
         raise SeaInputError(f"{where}: give either a spectrum or a component list, not both")
     wave_keys = sorted(set(kw) & {"hs", "tp", "gamma", "amplitude_m", "period_s", "heading_deg", "spreading_s"})
+    if "spectrum" not in kw and not given and "components" in kw:   # a count of components of no spectrum: calm
+        wave_keys = sorted(set(wave_keys) | {"components"})
     if "spectrum" not in kw and not given and wave_keys:
         raise SeaInputError(f"{where}: {', '.join(wave_keys)} need a spectrum (jonswap, pm, ittc, regular)")
     if given and wave_keys:

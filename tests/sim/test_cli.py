@@ -368,6 +368,7 @@ def test_maneuver_sea_state_table_elevation_column(tmp_path):
     (["--current-mps", "1", "--current-heading-deg", "inf"], "finite"),
     (["--current-heading-deg", "90"], "heading_deg without speed_mps"),   # it flew no current without a word
     (["--hs", "3"], "need a spectrum"),
+    (["--sea-state", "5", "--components", "32"], "components need a spectrum"),   # flew the table's one wave
 ])
 def test_maneuver_bad_sea_input_exit_2(args, needle):
     p = run("maneuver", "self-propulsion", "--duration", "1", *args)

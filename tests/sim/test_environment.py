@@ -69,6 +69,8 @@ def test_component_file_relative_to_the_base_dir(tmp_path):
     ({"spectrum": "ittc", "hs": 1}, "needs tp"),
     ({"spectrum": "jonswap", "tp": 9}, "needs hs"),
     ({"hs": 3, "tp": 9}, "need a spectrum"),
+    ({"components": 32}, "components need a spectrum"),                 # it was a calm sea, without a word
+    ({"components": 32, "sea_state": 5}, "components need a spectrum"),  # it was the regular table's one wave
     ({"components": "no_such_file.csv"}, "not found"),
     ({"spectrum": "jonswap", "hs": 1, "tp": 9, "sea_state": 5}, "do not give hs and tp"),
     ({"spectrum": "jonswap", "sea_state": 11}, "not in the table"),

@@ -567,6 +567,10 @@ def test_a_sea_varied_on_a_calm_mission_gets_a_spectrum_and_each_run_its_own_wav
     probe(s)
     s = parse_spec({"mission": str(calm0), "vary": {"sea.hs": [1.0, 2.0], "sea_state": 0}})   # varied: its own
     assert not s.notes and s.base["sea_state"] == 0
+    # a number of components of no spectrum means nothing either (it flew calm runs, every one alike)
+    s = parse_spec({"mission": "missions/canyon.yaml", "vary": {"sea.components": [16, 32]}})
+    with pytest.raises(SpecError, match="components need a spectrum"):
+        probe(s)
     # a direction alone on a calm sea means nothing: still refused, naming the key
     s = parse_spec({"mission": "missions/canyon.yaml", "vary": {"sea.heading_deg": {"choice": [0, 90]}}})
     with pytest.raises(SpecError, match="heading_deg need a spectrum"):
