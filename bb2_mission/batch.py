@@ -128,9 +128,7 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None, *,
     loops = 0
     while running:
         if on_progress is not None and loops % PROGRESS_EVERY_TICKS == 0:
-            live = set(running)
-            on_progress(sum(min(1.0, views[i].n / max(1, runners[i].n_steps)) if i in live else 1.0
-                            for i in range(len(M))))
+            on_progress(sum(1.0 if r.done else min(1.0, v.n / max(1, r.n_steps)) for r, v in zip(runners, views)))
         loops += 1
         ticks: dict[int, Any] = {}
         clear = _clearances(runners, running, terrains)

@@ -286,9 +286,9 @@ def sea_from_mapping(doc: Mapping[str, Any] | None, *, where: str = "sea", base_
     given = isinstance(comps, (str, WaveComponents))
     if given and "spectrum" in kw:
         raise SeaInputError(f"{where}: give either a spectrum or a component list, not both")
-    wave_keys = sorted(set(kw) & {"hs", "tp", "gamma", "amplitude_m", "period_s", "heading_deg", "spreading_s"})
-    if "spectrum" not in kw and not given and "components" in kw:   # a count of components of no spectrum: calm
-        wave_keys = sorted(set(wave_keys) | {"components"})
+    # (a count of components is a wave key too: of no spectrum it would be a calm sea)
+    wave_keys = sorted(set(kw) & {"hs", "tp", "gamma", "amplitude_m", "period_s", "heading_deg", "spreading_s",
+                                  *(() if given else ("components",))})
     if "spectrum" not in kw and not given and wave_keys:
         raise SeaInputError(f"{where}: {', '.join(wave_keys)} need a spectrum (jonswap, pm, ittc, regular)")
     if given and wave_keys:

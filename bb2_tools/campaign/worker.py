@@ -6,6 +6,7 @@ mission (or maneuver) before a campaign starts, so a bad key fails at once with 
 """
 from __future__ import annotations
 
+import functools
 import math
 import time
 from pathlib import Path
@@ -271,16 +272,13 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int], on_progress: Callable[
     if spec.target == "mission":
         from bb2_mission.records import MISSION_COLUMNS
 
-        def mission_of(i: int) -> Any:
-            return _mission_item(spec, i)
-
         def fly_missions(ms: list[Any], on_progress: Callable[[float], None] | None) -> list[Any]:
             from bb2_mission.batch import run_missions_batch
 
             return run_missions_batch(ms, on_progress=on_progress)
 
         return _fly_together(
-            spec, indices, mission_of, fly_missions,
+            spec, indices, functools.partial(_mission_item, spec), fly_missions,
             # a row per 0.05 s tick of the group's longest mission
             run_bytes=lambda _key, group: (max(m.duration for _, m in group) / 0.05 + 2) * len(MISSION_COLUMNS) * 8,
             diverged=lambda res: str(res.summary.end_reason) == "diverged",
@@ -288,16 +286,13 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int], on_progress: Callable[
             on_progress=on_progress)
     from bb2_sim.maneuvers import OUTPUT_COLUMNS
 
-    def maneuver_of(i: int) -> Any:
-        return _maneuver_item(spec, i)
-
     def fly_maneuvers(settings: list[Any], on_progress: Callable[[float], None] | None) -> list[Any]:
         from bb2_sim.batch.maneuvers import run_maneuvers_batch
 
         return run_maneuvers_batch(settings, on_progress=on_progress)
 
     return _fly_together(
-        spec, indices, maneuver_of, fly_maneuvers,
+        spec, indices, functools.partial(_maneuver_item, spec), fly_maneuvers,
         run_bytes=lambda key, _group: (key[1] / 0.1 + 1) * len(OUTPUT_COLUMNS) * 8,
         diverged=lambda res: res.error is not None,
         outcome=lambda s, res: _maneuver_outcome(spec, s, res), wall_s=lambda res: res.wall_time_s,
