@@ -10,11 +10,11 @@ step of the exact batch ROM (:class:`bb2_sim.batch.BatchSimulator`, ``exact=True
 simulator), then each does its half after it (:meth:`MissionRunner.finish_tick`).  A mission that has ended is
 retired from the batch; the others go on.
 
-What flies together (:func:`batch_refusal` says why not): one hull, physics profile and ``substeps`` for the batch, the
-authors' sea states (a regular wave per mission), no current, the stack flying on the truth (``navigation:
-truth``).  A mission whose ROM diverges in the batch ends in the same tick as alone, but its message says what the
-batch saw (a non-finite stage or state) where the single run may name the exception: fly it alone for that
-message (``bb2-campaign`` does).
+What flies together (:func:`batch_refusal` says why not): one hull, physics profile and ``substeps`` for the batch, and
+the stack flying on the truth (``navigation: truth``). Each mission keeps its own sea (the authors' regular wave or
+a spectrum's components) and current: the batch ROM takes them per boat.  A mission whose ROM diverges in the
+batch ends in the same tick as alone, but its message says what the batch saw (a non-finite stage or state)
+where the single run may name the exception: fly it alone for that message (``bb2-campaign`` does).
 """
 from __future__ import annotations
 
@@ -33,11 +33,6 @@ __all__ = ["batch_refusal", "run_missions_batch"]
 
 def batch_refusal(m: Mission) -> str | None:
     """Why mission ``m`` cannot fly in a batch (None: it can)."""
-    env = m.environment
-    if not env.sea.authors_table:
-        return "its sea is not one of the authors' sea states"
-    if env.current.build() is not None:
-        return "it has a current"
     if getattr(m, "navigation", "truth") != "truth":
         return f"it flies on its navigation estimate (navigation: {m.navigation})"
     return None
@@ -95,7 +90,7 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None, *,
     from bb2_sim.model import BB2Model
     from bb2_sim.profiles import get_profile
     from bb2_sim.state import VehicleState
-    from bb2_sim.waves import wave_for_sea_state
+    from bb2_sim.waves import Wave, wave_for_sea_state
 
     M = list(missions)
     if not M:
@@ -113,8 +108,10 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None, *,
     elif model.profile != get_profile(M[0].profile) or model.sea is not None or not model.wave.calm:
         raise ValueError("batch: the model must be the missions' hull and profile in calm water")
     runners = [MissionRunner(m, model) for m in M]
-    waves = [wave_for_sea_state(m.environment.sea.sea_state, model.params) for m in M]
-    bm = BatchModel(model, waves, exact=True)
+    waves = [wave_for_sea_state(m.environment.sea.sea_state, model.params) if m.environment.sea.authors_table
+             else Wave() for m in M]
+    seas = [None if m.environment.sea.authors_table else m.environment.sea.build(model.params) for m in M]
+    bm = BatchModel(model, waves, exact=True, seas=seas, currents=[m.environment.current.build() for m in M])
     sim = BatchSimulator(bm, np.array([r.sim.x for r in runners]), h=runners[0].sim.h,
                          substeps=runners[0].sim.substeps)
     views = [_BoatView(sim, i, model) for i in range(len(M))]

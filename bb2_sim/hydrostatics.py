@@ -41,6 +41,10 @@ def _merge_points(tri: np.ndarray, area_vectors: np.ndarray) -> tuple[np.ndarray
     return pts, W
 
 
+ROTATIONS_KEPT = 1024
+"""Plane deflection sets whose hinge rotations a :class:`PressureIntegrator` keeps (oldest dropped first)."""
+
+
 def _hinge_rotation(RX: np.ndarray, delta_rad: float) -> np.ndarray:
     c, s = np.cos(delta_rad), np.sin(delta_rad)
     Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
@@ -99,18 +103,21 @@ class PressureIntegrator:
         self._FMT = [np.ascontiguousarray(FM[b].T) for b in self._blocks]
         self._buf = np.empty((2, self.n_points))
         self._rows = [(self._buf[0, b], self._buf[1, b]) for b in self._blocks]
-        self._cache_key: tuple | None = None
-        self._rot = np.zeros((len(pivots), 3, 3))
+        self._rotations: dict[tuple, np.ndarray] = {}
 
     # ---------------------------------------------------------------------------------------------
     def _plane_rotations(self, deflections_deg: np.ndarray) -> np.ndarray:
-        """Hinge rotations R_i (B - 1, 3, 3) of the planes (cached per deflection: they change once per step)."""
+        """Hinge rotations R_i (B - 1, 3, 3) of the planes (cached per deflection: they change once per step; the
+        last :data:`ROTATIONS_KEPT` are kept, so that the boats of a batch sharing this integrator keep theirs)."""
         key = tuple(float(d) for d in deflections_deg)
-        if key != self._cache_key:
-            self._rot = np.array([_hinge_rotation(RX, np.deg2rad(d)) for RX, d in zip(self._hinges, key)]
-                                 ).reshape(-1, 3, 3)
-            self._cache_key = key
-        return self._rot
+        rot = self._rotations.get(key)
+        if rot is None:
+            rot = np.array([_hinge_rotation(RX, np.deg2rad(d)) for RX, d in zip(self._hinges, key)]).reshape(-1, 3, 3)
+            rot.setflags(write=False)
+            if len(self._rotations) >= ROTATIONS_KEPT:
+                del self._rotations[next(iter(self._rotations))]
+            self._rotations[key] = rot
+        return rot
 
     def _block_sums(self, vx: np.ndarray, vz: np.ndarray, cx: np.ndarray, cz: np.ndarray, t: float,
                     wave: Wave, clip: bool) -> np.ndarray:
@@ -188,14 +195,18 @@ class PressureIntegrator:
         return self._sum_blocks(G, Ri)
 
     def loads_and_orbital_velocity(self, p_earth: np.ndarray, R: np.ndarray, t: float, deflections_deg: np.ndarray,
-                                   sea, points_body: np.ndarray, *, q12: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                                   sea, points_body: np.ndarray, *, q12: bool = False, grid=None
+                                   ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`loads` of a component ``sea`` by the grid (not clipped) and the sea's orbital velocity (P, 3)
         (earth axes, m/s) at ``points_body`` (P, 3) (body axes about the CG), as ``sea.orbital_velocity`` gives it
-        (``q12``: its phase shifted by -pi/2), from the same exponentials (single precision, as the grid)."""
+        (``q12``: its phase shifted by -pi/2), from the same exponentials (single precision, as the grid).
+        ``grid``: a wave-load grid of these points of one's own (:meth:`new_wave_grid`; the same results, its own
+        caches: boats of a batch in different seas each keep theirs); None: this integrator's."""
         Ri = self._plane_rotations(deflections_deg)
         v, c = self._sea_blocks(p_earth, R, Ri)
         rg = self.rho * self.g
-        G, uw = self.wave_grid(points_body).block_sums_and_orbital_velocity(sea.components, v, c, t, q12=q12)
+        grid = self.wave_grid(points_body) if grid is None else grid
+        G, uw = grid.block_sums_and_orbital_velocity(sea.components, v, c, t, q12=q12)
         return self._sum_blocks(rg * G + self._hydrostatic_sums(v, c), Ri), uw
 
     def _sea_blocks(self, p_earth, R: np.ndarray, Ri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -242,13 +253,18 @@ class PressureIntegrator:
         grids = self._wave_grids
         key = None if points_body is None else np.asarray(points_body, dtype=float).tobytes()
         if key not in grids:
-            from .sea.data import sea_data
-            from .sea.pressure_grid import WavePressureGrid
-            cfg = sea_data()["wave_load_grid"]
-            blocks = [(dT[:3].T, FMT.T) for dT, FMT in zip(self._dT, self._FMT)]
-            grids[key] = WavePressureGrid(blocks, [float(h) for h in cfg["spacings_m"]], int(cfg["order"]),
-                                          float(cfg["max_kh"]), points=points_body)
+            grids[key] = self.new_wave_grid(points_body)
         return grids[key]
+
+    def new_wave_grid(self, points_body: np.ndarray | None = None):
+        """A new wave-load grid of these surfaces (what :meth:`wave_grid` keeps one of; its levels are built on
+        first use)."""
+        from .sea.data import sea_data
+        from .sea.pressure_grid import WavePressureGrid
+        cfg = sea_data()["wave_load_grid"]
+        blocks = [(dT[:3].T, FMT.T) for dT, FMT in zip(self._dT, self._FMT)]
+        return WavePressureGrid(blocks, [float(h) for h in cfg["spacings_m"]], int(cfg["order"]),
+                                float(cfg["max_kh"]), points=points_body)
 
     def volume(self) -> float:
         """Enclosed volume of the undeflected surfaces from the same integral (calm, level, CG at z = 0).

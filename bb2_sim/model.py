@@ -95,6 +95,40 @@ class BB2Model:
         self._flow_points_body = np.vstack([np.zeros((1, 3)), p.plane_points_body, p.section_points_body])
 
     # -------------------------------------------------------------------------------------------
+    def flow_in_environment(self, t: float, x: np.ndarray, R: np.ndarray, planes_deg: np.ndarray, sea, current,
+                            wave: Wave, grid=None) -> tuple[np.ndarray, tuple[float, float, float], np.ndarray | None]:
+        """What a component sea and/or a current do at the flow points of state ``x`` (R: its body->earth rotation):
+        the water's velocity (21, 3) body axes at the CG, the 5 planes and the 15 sections (orbital velocity plus
+        current), the boat's velocity relative to the water (u, v, w) for the loads, and the pressure-integral
+        loads (6,) when a component sea on the grid gives them from the same exponentials (else None).
+
+        ``sea`` (a component :class:`bb2_sim.sea.Sea` or None), ``current`` (or None) and ``wave`` (the regular
+        wave when there is no sea) are the model's own in :meth:`evaluate`; the batch ROM passes each boat's
+        (``grid``: the boat's own wave-load grid, :meth:`PressureIntegrator.new_wave_grid`; None: the model's)."""
+        prof = self.profile
+        pos = x[0:3]
+        u, v, w = float(x[6]), float(x[7]), float(x[8])
+        BFM = None
+        # a component sea on the grid: the pressure integral (7) and the orbital velocities from one evaluation
+        fused = sea is not None and sea.components is not None and self.wave_load_method == "grid" \
+            and not prof.free_surface_clipping
+        e = None if fused and current is None else pos + self._flow_points_body @ R.T
+        if fused:
+            BFM, uw_e = self.hydro.loads_and_orbital_velocity(pos, R, t, planes_deg, sea, self._flow_points_body,
+                                                              q12=not prof.wave_velocity_in_phase, grid=grid)
+        elif sea is not None:
+            uw_e = sea.orbital_velocity(e, t, q12=not prof.wave_velocity_in_phase)
+        elif not wave.calm:
+            uw_e = orbital_velocity_earth(wave, e[:, 0], e[:, 2], t, prof.wave_velocity_in_phase)
+        else:
+            uw_e = np.zeros((len(e), 3))
+        if current is not None:
+            uc = current.velocity_earth(e[:, 2])
+            uw_e = uw_e + uc
+            uc_cg = uc[0] @ R
+            u, v, w = u - float(uc_cg[0]), v - float(uc_cg[1]), w - float(uc_cg[2])
+        return uw_e @ R, (u, v, w), BFM
+
     def evaluate(self, t: float, x: np.ndarray, act: ActuatorOutputs, dmem: DerivativeMemory) -> Evaluation:
         """Full model evaluation at (t, x) with the held actuator outputs and the derivative memory."""
         P, prof, wave = self.params, self.profile, self.wave
@@ -111,26 +145,7 @@ class BB2Model:
         uh, vh, wh = u, v, w                     # velocity relative to the water (current) for the loads
         BFM = None
         if self.sea is not None or self.current is not None:
-            # a component sea on the grid: the pressure integral (7) and the orbital velocities from one evaluation
-            fused = self.sea is not None and self.sea.components is not None and self.wave_load_method == "grid" \
-                and not prof.free_surface_clipping
-            e = None if fused and self.current is None else pos + self._flow_points_body @ R.T
-            if fused:
-                BFM, uw_e = self.hydro.loads_and_orbital_velocity(pos, R, t, act.planes_deg, self.sea,
-                                                                  self._flow_points_body,
-                                                                  q12=not prof.wave_velocity_in_phase)
-            elif self.sea is not None:
-                uw_e = self.sea.orbital_velocity(e, t, q12=not prof.wave_velocity_in_phase)
-            elif not wave.calm:
-                uw_e = orbital_velocity_earth(wave, e[:, 0], e[:, 2], t, prof.wave_velocity_in_phase)
-            else:
-                uw_e = np.zeros((len(e), 3))
-            if self.current is not None:
-                uc = self.current.velocity_earth(e[:, 2])
-                uw_e = uw_e + uc
-                uc_cg = uc[0] @ R
-                uh, vh, wh = u - float(uc_cg[0]), v - float(uc_cg[1]), w - float(uc_cg[2])
-            uw = uw_e @ R
+            uw, (uh, vh, wh), BFM = self.flow_in_environment(t, x, R, act.planes_deg, self.sea, self.current, wave)
             uw_cg, uw_planes, uw_sec = uw[0], uw[1:6], uw[6:]
         elif wave.calm:
             uw_cg = np.zeros(3)

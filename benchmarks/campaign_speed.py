@@ -3,7 +3,8 @@ one-process-per-run baseline; plus the memory of building the results of a 100,0
 
     .venv/bin/python benchmarks/campaign_speed.py [--mission missions/canyon.yaml] [--runs 8]
         [--duration S] [--no-baseline] [--no-ray] [--store-rows 100000] [--maneuvers 256] [--only-maneuvers]
-        [--mission-batch-runs 64] [--mission-batches 128] [--mission-sea-states 0,3,5] [--no-one-by-one]
+        [--mission-batch-runs 64] [--mission-batches 128] [--mission-sea-states 0,3,5]
+        [--mission-spectrum-seas 3,4,5,6] [--no-one-by-one]
 
 Every campaign is the same SPEC (the mission with the guidance look-ahead ``stack.guidance.d_m`` drawn uniform in
 [200, 300] m and ``adaptation`` on/off): runs/s is runs / wall time of the engine (pool or cluster start-up
@@ -17,7 +18,8 @@ engines are compared flying one run per task (``--batch 1``).
 0/3/5, too) by the local pool of 2
 workers, one by one and flown together (``--mission-batches``: the ``--batch`` values, default 128): each worker
 flies the missions of its chunk with one exact batch ROM (bb2_mission.batch), each mission's stack alone; the
-goal line takes the faster way.
+goal line takes the faster way.  ``--mission-spectrum-seas 3,4,5,6``: short-crested JONSWAP seas of these sea states
+and four wave headings drawn instead, each run its own wave phases (e.g. on ``missions/canyon_periscope_ss5.yaml``).
 
 ``--maneuvers N``: a campaign of N turning circles (60 s; rudder, sea state (``--maneuver-sea-states``, default
 0/3/5) and speed drawn) flown by the
@@ -44,14 +46,24 @@ from bb2_tools.campaign.spec import parse_spec  # noqa: E402
 from bb2_tools.campaign.worker import probe  # noqa: E402
 
 
-def make_spec(mission: str, runs: int, duration: float | None, sea_states: list[int] | None = None):
+def make_spec(mission: str, runs: int, duration: float | None, sea_states: list[int] | None = None,
+              spectrum_seas: list[int] | None = None):
+    """The benchmark's SPEC; ``sea_states``: the authors' regular sea states drawn; ``spectrum_seas``: short-crested
+    JONSWAP seas of these sea states (the table's Hs and Tp, 32 components, spreading s = 10) drawn, with the wave
+    heading (0/90/180/270 deg) and each run's own wave phases (``seed_key: sea.seed``)."""
     vary: dict = {"stack.guidance.d_m": {"uniform": [200.0, 300.0]}, "adaptation": [True, False]}
-    if sea_states:
+    extra: dict = {}
+    if spectrum_seas:
+        vary.update({"sea.spectrum": "jonswap", "sea.components": 32, "sea.spreading_s": 10.0,
+                     "sea.sea_state": {"choice": spectrum_seas}, "sea.heading_deg": {"choice": [0, 90, 180, 270]}})
+        extra["seed_key"] = "sea.seed"
+    elif sea_states:
         vary["sea_state"] = {"choice": sea_states}
     if duration is not None:
         vary["duration_s"] = duration
     spec = parse_spec({"name": "campaign_speed", "mission": mission, "seed": 1, "samples": max(1, (runs + 1) // 2),
-                       "vary": vary, "collect": ["rms_vertical", "rms_horizontal", "min_clearance", "mission_time_s"]})
+                       "vary": vary, "collect": ["rms_vertical", "rms_horizontal", "min_clearance", "mission_time_s"],
+                       **extra})
     probe(spec)
     return spec
 
@@ -159,14 +171,16 @@ def maneuver_batches(n: int, sea_states: list[float], batches: list[int]) -> Non
 
 
 def mission_batches(mission: str, n: int, duration: float | None, batches: list[int], sea_states: list[int],
-                    one_by_one: bool = True) -> float:
-    """The mission campaign of ``n`` runs (the sea state drawn from ``sea_states`` too) by the local pool of 2
-    workers, one by one (unless ``one_by_one`` is False) and flown together (``--batch B``); returns the best
-    simulated seconds per second."""
-    spec = make_spec(mission, n, duration, sea_states=sea_states)
+                    one_by_one: bool = True, spectrum_seas: list[int] | None = None) -> float:
+    """The mission campaign of ``n`` runs (the sea state drawn from ``sea_states`` too, or a spectrum sea of
+    ``spectrum_seas``: :func:`make_spec`) by the local pool of 2 workers, one by one (unless ``one_by_one`` is
+    False) and flown together (``--batch B``); returns the best simulated seconds per second."""
+    spec = make_spec(mission, n, duration, sea_states=sea_states, spectrum_seas=spectrum_seas)
     n = min(n, spec.n_runs)
-    print(f"mission campaign: {n} runs of {'%g s' % duration if duration else 'the whole mission'} (sea states "
-          f"{'/'.join(map(str, sea_states))} drawn), local pool of 2 workers")
+    seas = (f"JONSWAP seas of sea states {'/'.join(map(str, spectrum_seas))} and four headings" if spectrum_seas
+            else f"sea states {'/'.join(map(str, sea_states))}")
+    print(f"mission campaign: {n} runs of {'%g s' % duration if duration else 'the whole mission'} ({seas} drawn), "
+          f"local pool of 2 workers")
     w1 = r1 = None
     best = 0.0
     if one_by_one:
@@ -199,6 +213,9 @@ def main(argv=None) -> int:
                     help="runs of the mission batch comparison (0: skip)")
     ap.add_argument("--mission-batches", default="128", help="--batch values of the mission batch comparison")
     ap.add_argument("--mission-sea-states", default="0,3,5", help="sea states drawn in the mission batch comparison")
+    ap.add_argument("--mission-spectrum-seas", default="", metavar="S,S,...",
+                    help="instead: short-crested JONSWAP seas of these sea states (and four wave headings) drawn in "
+                         "the mission batch comparison, e.g. 3,4,5,6 with --mission missions/canyon_periscope_ss5.yaml")
     ap.add_argument("--no-one-by-one", action="store_true",
                     help="the mission campaign flown together only (e.g. 128 whole canyon runs: the one-by-one pass "
                          "would take ~7 min more)")
@@ -241,7 +258,8 @@ def main(argv=None) -> int:
     if a.mission_batch_runs:
         rate = mission_batches(a.mission, a.mission_batch_runs, a.duration,
                                [int(x) for x in a.mission_batches.split(",")],
-                               [int(x) for x in a.mission_sea_states.split(",")], not a.no_one_by_one)
+                               [int(x) for x in a.mission_sea_states.split(",")], not a.no_one_by_one,
+                               [int(x) for x in a.mission_spectrum_seas.split(",") if x])
         if rate > sim_rate:
             sim_rate, how = rate, "2 local workers, missions flown together"
     minutes = 1000 * 475.15 / sim_rate / 60 if sim_rate else float("nan")

@@ -3,7 +3,7 @@ autopilot, zig-zags, constant rudder, imposed planes, constant rps or the speed 
 boat, and the batch model and simulator of a list of maneuvers.
 
 The boats share the hull and the physics profile; each keeps its own depth, speed, references, channel logic,
-sea state (the authors' table). Maneuvers with an ``environment`` (irregular sea, current) are refused.
+sea (the authors' table, or its ``environment``'s spectrum sea) and current.
 """
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ import numpy as np
 from ..maneuvers import RAD2DEG, ManeuverSettings
 from ..model import BB2Model
 from ..profiles import get_profile
+from ..waves import Wave, wave_for_sea_state
 from ..xplane import mixing_matrix
 from .autopilot import BatchSpeedPI, BatchV12Autopilot
 from .model import BatchModel
@@ -99,8 +100,6 @@ def batch_for_maneuvers(settings: Sequence[ManeuverSettings], model: BB2Model | 
     S = list(settings)
     if not S:
         raise ValueError("batch: no maneuvers")
-    if any(s.environment is not None for s in S):
-        raise ValueError("batch: irregular seas not supported yet (maneuvers with an environment)")
     if len({get_profile(s.profile) for s in S}) > 1:
         raise ValueError("batch: the boats of a batch share one physics profile")
     if len({s.substeps for s in S}) > 1:
@@ -110,9 +109,27 @@ def batch_for_maneuvers(settings: Sequence[ManeuverSettings], model: BB2Model | 
     elif model.profile != get_profile(S[0].profile):
         raise ValueError(f"batch: the model's profile {model.profile.name!r} is not the maneuvers' "
                          f"{S[0].profile!r}")
-    bm = BatchModel.from_sea_states(model, [s.sea_state for s in S], exact=exact)
+    if model.sea is not None or model.current is not None:
+        raise ValueError("batch: the model must be calm (each maneuver brings its own sea and current)")
+    waves, environments = _environments(S, model.params)
+    bm = BatchModel(model, waves, exact=exact, **environments)
     return (BatchSimulator(bm, np.array([s.initial_state() for s in S]), substeps=S[0].substeps),
             BatchManeuverCommander(S))
+
+
+def _environments(S: Sequence[ManeuverSettings], params) -> tuple[list, dict]:
+    """The boats' regular waves, and their component seas and currents (``BatchModel`` keywords), as
+    :func:`bb2_sim.maneuvers.build_model` gives each maneuver its own: the authors' sea-state table, or the
+    settings' environment."""
+    waves, seas, currents = [], [], []
+    for s in S:
+        env = s.environment
+        table = env is None or env.sea.authors_table
+        waves.append(wave_for_sea_state(s.sea_state if env is None else env.sea.sea_state, params) if table
+                     else Wave())
+        seas.append(None if table else env.sea.build(params))
+        currents.append(None if env is None else env.current.build())
+    return waves, {"seas": seas, "currents": currents}
 
 
 def _log_rows(rec, rows: np.ndarray, params, seas: list) -> np.ndarray:
@@ -166,7 +183,7 @@ def run_maneuvers_batch(settings: Sequence[ManeuverSettings], model: BB2Model | 
     the longest).  A boat that diverges stops in the same step as alone, but its error says what the batch saw (a
     non-finite stage or state), where the single run may name the exception that made it (float division by
     zero).  The wall time of each result is its share of the batch's.  Same restrictions as
-    :func:`batch_for_maneuvers` (one physics profile, the authors' sea states, no environment).
+    :func:`batch_for_maneuvers` (one physics profile and substeps).
     ``on_progress(done)``, every :data:`PROGRESS_EVERY_STEPS` steps and at the end: how many maneuvers' worth of
     steps are flown (each boat's steps over its own, a diverged one 1; ``len(settings)`` at the end)."""
     import time
@@ -178,7 +195,9 @@ def run_maneuvers_batch(settings: Sequence[ManeuverSettings], model: BB2Model | 
     t0 = time.perf_counter()
     sim, cmd = batch_for_maneuvers(S, model, hull_mesh, exact=exact)
     params = sim.model.params
-    seas = [None if w.calm else AuthorsTableSea(w, params.g) for w in sim.model.waves.waves]
+    envs = sim.model.environment
+    seas = [sea if sea is not None else None if w.calm else AuthorsTableSea(w, params.g)
+            for w, sea in zip(envs.waves, envs.seas)]
     n_steps = np.array([int(round(s.duration / sim.h)) for s in S])
     n_rows = n_steps // log_every + 1
     traj = [np.empty((int(r), len(OUTPUT_COLUMNS))) for r in n_rows]

@@ -12,8 +12,11 @@ scalar code's orbital velocities (on arrays over boats, bit for bit) and its pre
 per-point pass boat by boat (that work does not vectorise over boats with profit); with free-surface clipping every
 boat runs the scalar pressure code itself.
 
-Refused (``ValueError``): irregular / component seas (``BB2Model(sea=...)``: "batch: irregular seas not supported
-yet") and currents.
+Irregular (component) seas and currents go per boat (``seas=``, ``currents=``): for those boats the water's
+velocity at the flow points, the velocity relative to the water and, in a component sea, the pressure integral are
+the scalar code's own (:meth:`BB2Model.flow_in_environment`, boat by boat, each sea with its own wave-load grid),
+everything else is the batch's: bit for bit the single runs in the exact mode, as for the authors' seas. The model
+itself must be calm (``BB2Model(sea=...)`` or a current on it is refused: give them per boat).
 """
 from __future__ import annotations
 
@@ -35,6 +38,7 @@ from .planes import plane_flow, plane_loads
 from .pressure import BatchPressure
 from .propeller import propeller_load
 from .rigid_body import kinematics, rigid_body_acceleration
+from .environment import BatchEnvironment
 from .waves import BatchWaves
 
 RAD2DEG = 180.0 / np.pi
@@ -61,22 +65,26 @@ class BatchEvaluation:
 
 
 class BatchModel:
-    """The ROM of ``model`` for N boats, each with its own regular wave.
+    """The ROM of ``model`` for N boats, each with its own regular wave, irregular sea and current.
 
     ``waves``: one :class:`Wave` per boat (calm: ``Wave()``), or None for ``n_boats`` boats in the model's own
-    sea state. The model's hull, parameters, tables, profile (every switch is supported) and mass are shared.
+    sea state. ``seas``: one :class:`bb2_sim.sea.Sea` or None per boat (as ``BB2Model(sea=...)``: an
+    :class:`~bb2_sim.sea.AuthorsTableSea` is its regular wave, a calm sea none; a boat with a sea has a calm
+    ``waves`` entry); ``currents``: one :class:`bb2_sim.current.Current` or None per boat. The model's hull,
+    parameters, tables, profile (every switch is supported) and mass are shared; the model itself is calm.
     ``exact``: the pressure integral's plane blocks follow the scalar code's kernels too, and the flow angles, plane
     incidences and weight components take the C library's functions as the scalar code does (:mod:`.libm`): bit
     for bit the single evaluation (about twice the cost per boat).
     """
 
     def __init__(self, model: BB2Model, waves: Sequence[Wave] | None = None, *, n_boats: int | None = None,
-                 exact: bool = False):
+                 exact: bool = False, seas: Sequence | None = None, currents: Sequence | None = None):
         if model.sea is not None:
-            raise ValueError("batch: irregular seas not supported yet (give regular waves per boat: "
-                             "bb2_sim.waves.wave_for_sea_state)")
+            raise ValueError("batch: the model must be calm: give each boat its sea (seas=[...])")
         if model.current is not None:
-            raise ValueError("batch: currents not supported yet")
+            raise ValueError("batch: the model must have no current: give each boat its current (currents=[...])")
+        if waves is None and n_boats is None:
+            n_boats = next((len(a) for a in (seas, currents) if a is not None), None)
         if waves is None:
             if n_boats is None or int(n_boats) < 1:
                 raise ValueError("batch: give the waves of the boats or n_boats >= 1")
@@ -88,7 +96,9 @@ class BatchModel:
         self.model = model
         self.params = model.params
         self.profile = model.profile
-        self.waves = BatchWaves.from_waves(waves)
+        self.environment = BatchEnvironment.of_boats(model, waves, seas, currents)
+        self.waves = BatchWaves.from_waves(self.environment.waves)
+        self._env_mask, self._sea_mask = self.environment.mask, self.environment.sea_mask
         self.n_boats = len(self.waves)
         self.tables = BatchRomTables(model.tables)
         self.pressure = BatchPressure(model.hydro, exact)
@@ -153,9 +163,17 @@ class BatchModel:
         seg = Segments()
 
         # wave velocities (body axes) at the CG, the 5 planes and the 15 sections: (3, 21, n), for the boats in a
-        # sea (the scalar code's products: numpy's stacked matmul calls them boat by boat)
-        wavy = np.flatnonzero(waves.wavy)
-        uw = np.zeros((3, len(self._points_body), n)) if len(wavy) else None
+        # sea (the scalar code's products: numpy's stacked matmul calls them boat by boat); the boats in a
+        # component sea or a current take the scalar code's flow boat by boat (and, in a component sea, its
+        # pressure integral), with their velocity relative to the water for the loads
+        ids = np.arange(n) if boats is None else np.asarray(boats)
+        env_mask = self._env_mask[ids]
+        env = np.flatnonzero(env_mask)
+        wavy = np.flatnonzero(waves.wavy & ~env_mask)
+        flowing = np.flatnonzero(waves.wavy | env_mask)             # the boats whose water moves
+        uw = np.zeros((3, len(self._points_body), n)) if len(flowing) else None
+        uh, vh, wh = u, v, w
+        BFM_env = None
         if len(wavy):
             Rw = np.ascontiguousarray(R[:, :, wavy].transpose(2, 0, 1))                    # (m, 3, 3)
             e = x[wavy, None, 0:3] + np.matmul(self._points_body, Rw.transpose(0, 2, 1))   # (m, 21, 3) earth
@@ -164,6 +182,11 @@ class BatchModel:
                                                              t if np.ndim(t) == 0 else t[wavy],
                                                              prof.wave_velocity_in_phase)
             uw[:, :, wavy] = np.matmul(uw_e, Rw).transpose(2, 1, 0)
+        if len(env):
+            rel = np.array([u, v, w])
+            BFM_env = np.empty((n, 6))
+            self.environment.flows(self.model, t, x, R, act.planes_deg, ids[env], env, uw, rel, BFM_env)
+            uh, vh, wh = rel
         uw_cg = (0.0, 0.0, 0.0) if uw is None else uw[:, 0]         # calm: the scalar code's zeros
         uw_planes = np.zeros((3, 5, 1)) if uw is None else uw[:, 1:6]
 
@@ -181,17 +204,28 @@ class BatchModel:
         # planes (3.2, 3.3, 5.x)
         UeX, aX = plane_flow(u, v, w, p_, q, r, uw_planes, P, guard=prof.zero_speed_guard, exact=self.exact)
         dXe = act.planes_deg + aX
-        Fp = plane_loads(dXe, UeX, u, q, Z0, P, self.tables, seg, n_clamped_depth=prof.n_planes_clamped_depth)
+        Fp = plane_loads(dXe, UeX, uh, q, Z0, P, self.tables, seg, n_clamped_depth=prof.n_planes_clamped_depth)
 
         # hull (5.x)
-        Xh, Yh, Zh, Kh, Mh, Nh, T_wq = hull_loads(u, v, w, p_, q, r, Z0, alpha, beta, U, P, self.tables, seg,
+        Xh, Yh, Zh, Kh, Mh, Nh, T_wq = hull_loads(uh, vh, wh, p_, q, r, Z0, alpha, beta, U, P, self.tables, seg,
                                                    zuvw_b_abs_beta=prof.zuvw_b_abs_beta,
                                                    kpp_once=prof.kpp_once, sign_u_guard=prof.zero_speed_guard)
 
         # pressure integral (7)
         if act.rotations is None:
             act.rotations = self.pressure.prepare(act.planes_deg)
-        BFM = self.pressure.loads(x[:, 0:3], R, t, waves, act.rotations, clip_emerged=prof.free_surface_clipping)
+        sea = env[self._sea_mask[ids[env]]] if len(env) else env        # rows in a component sea: loads made above
+        if len(sea) == 0:
+            BFM = self.pressure.loads(x[:, 0:3], R, t, waves, act.rotations, clip_emerged=prof.free_surface_clipping)
+        else:
+            BFM = BFM_env
+            rest = np.setdiff1d(np.arange(n), sea)
+            if len(rest) and waves.wavy[rest].any():
+                self.pressure.exact_rotations(act.rotations)            # made once for the step, kept by subsets
+            if len(rest):
+                BFM[rest] = self.pressure.loads(x[rest, 0:3], R[:, :, rest], t if np.ndim(t) == 0 else t[rest],
+                                                waves.subset(rest), act.rotations.subset(rest),
+                                                clip_emerged=prof.free_surface_clipping)
 
         # added mass (8): urel_i = uw_i - (V + r_i @ skew(omega)^T), F_vm = [sum_i dF_i, sum_i r_i x dF_i] with
         # dF_i = Cvm_i d/dt urel_i (Derivative blocks). ``exact``: section by section, the products per boat with
@@ -213,15 +247,15 @@ class BatchModel:
                 A[:, 0, 1] - A[:, 1, 0]
         else:
             am_in = AddedMassInputs(x[:, 6:12].copy(), None if uw is None else
-                                    np.ascontiguousarray(uw[:, 6:, wavy].transpose(2, 1, 0)), wavy)
+                                    np.ascontiguousarray(uw[:, 6:, flowing].transpose(2, 1, 0)), flowing)
             d_nu, d_uw = dmem.derivatives(t, am_in, boats)
             F_vm = d_nu @ self._added_mass_of_motion
             np.negative(F_vm, out=F_vm)
             if d_uw is not None:                                            # [sum_i dF_i, sum_i r_i x dF_i]
-                F_vm[wavy] += (P.Cvm * d_uw).reshape(len(wavy), -1) @ self._section_sums
+                F_vm[flowing] += (P.Cvm * d_uw).reshape(len(flowing), -1) @ self._section_sums
 
         # propeller (6)
-        prop = propeller_load(u, Z0, act.rps, P, self.tables.thrust_deduction, seg,
+        prop = propeller_load(uh, Z0, act.rps, P, self.tables.thrust_deduction, seg,
                               wired_correctly=prof.thrust_deduction_wired)
 
         # statics (7.5)

@@ -28,7 +28,7 @@ class BatchWaves:
         for i, w in enumerate(ws):
             if not isinstance(w, Wave):
                 raise ValueError(f"batch: boat {i}: a wave must be a bb2_sim.waves.Wave (the authors' regular sea), "
-                                 f"got {type(w).__name__} (irregular seas not supported yet)")
+                                 f"got {type(w).__name__} (give an irregular sea as seas=[...])")
         return cls(np.array([float(w.amplitude) for w in ws]), ws)
 
     def __len__(self) -> int:

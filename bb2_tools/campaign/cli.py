@@ -44,9 +44,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=positive_int, metavar="N",
                    help="local: worker processes (default: CPUs); ray: runs in flight (default: 2 x CPUs)")
     p.add_argument("--batch", type=positive_int, metavar="N", default=None,
-                   help="the most runs one worker flies together in the batch ROM (maneuvers; missions in the "
-                        "authors' sea states without current), bit for bit what each gives alone (default 128; 1: "
-                        "every run alone; not with --graph)")
+                   help="the most runs one worker flies together in the batch ROM (maneuvers; missions flying on "
+                        "the truth), bit for bit what each gives alone (default 128; 1: every run alone; not with "
+                        "--graph)")
     p.add_argument("--resume", action="store_true", help="finish exactly the runs missing from DIR")
     p.add_argument("--only", type=_index, metavar="INDEX", help="fly run INDEX alone (needs --out-run)")
     p.add_argument("--out-run", metavar="DIR", help="--only: where that run's CSV, figures and row go")

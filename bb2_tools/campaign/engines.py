@@ -61,8 +61,8 @@ def chunk_size(spec: CampaignSpec, total: int, workers: int, batch: int = DEFAUL
     128: eight chunks of 125), so that every worker flies full batches to the end (a share recomputed from the
     runs left would shrink the last chunks below :data:`~bb2_tools.campaign.worker.BATCH_MIN` and fly them one
     by one, at half the batch's speed).  A share below BATCH_MIN, or a campaign none of whose runs can fly in a
-    batch (:func:`~bb2_tools.campaign.worker.may_batch`: a spectrum sea, a current): 1, the runs go out one by one,
-    each landing as it finishes."""
+    batch (:func:`~bb2_tools.campaign.worker.may_batch`: missions on their navigation estimate): 1, the runs go
+    out one by one, each landing as it finishes."""
     if not batched(spec) or batch < BATCH_MIN or total <= 0:
         return 1
     workers = max(1, workers)

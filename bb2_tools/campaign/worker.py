@@ -201,8 +201,7 @@ def batched(spec: CampaignSpec) -> bool:
 
 def _mission_item(spec: CampaignSpec, i: int) -> tuple[Any, Any]:
     """Run ``i``'s mission and its batch group (hull, profile, substeps), or None when it flies alone
-    (:func:`bb2_mission.batch.batch_refusal`: a sea other than the authors' table, a current, navigation on
-    sensors)."""
+    (:func:`bb2_mission.batch.batch_refusal`: navigation on sensors)."""
     from bb2_mission.batch import batch_refusal
 
     m = build_mission(spec, spec.document(i))
@@ -210,10 +209,9 @@ def _mission_item(spec: CampaignSpec, i: int) -> tuple[Any, Any]:
 
 
 def _maneuver_item(spec: CampaignSpec, i: int) -> tuple[Any, Any]:
-    """Run ``i``'s maneuver settings and its batch group (profile, duration, substeps), or None in a sea or current
-    of its own (flown alone)."""
+    """Run ``i``'s maneuver settings and its batch group (profile, duration, substeps)."""
     s = maneuver_settings_of(spec, spec.document(i))
-    return s, ((s.profile, s.duration, s.substeps) if s.environment is None else None)
+    return s, (s.profile, s.duration, s.substeps)
 
 
 BATCH_SAMPLE = 8
@@ -222,8 +220,9 @@ BATCH_SAMPLE = 8
 
 def may_batch(spec: CampaignSpec, sample: int = BATCH_SAMPLE) -> bool:
     """Whether the runs of ``spec`` may fly together (:func:`batched`) and any of ``sample`` runs spread over the
-    campaign (the first, the last, evenly between) has a batch group.  A campaign whose runs all fly alone (a
-    spectrum sea, a current: :func:`bb2_mission.batch.batch_refusal`) gains nothing from chunks of many runs and
+    campaign (the first, the last, evenly between) has a batch group.  A campaign whose runs all fly alone
+    (missions on their navigation estimate: :func:`bb2_mission.batch.batch_refusal`) gains nothing from chunks of
+    many runs and
     would hold each finished run in its worker until the whole chunk is done: the engines then send its runs one
     by one (:func:`bb2_tools.campaign.engines.chunk_size`), so each lands, and counts in the progress, as it
     finishes.  Remembered on the spec."""

@@ -40,6 +40,20 @@ def _summary(s) -> dict:
     return _plain(d)
 
 
+def _as_alone(ms: list, together: list) -> list:
+    """Assert that each mission's batch result is bit for bit its run alone (every column, every summary figure);
+    returns the results alone."""
+    alone = []
+    for m, b in zip(ms, together):
+        a = run_mission(m)
+        assert list(b.traj) == list(a.traj)
+        for c in a.traj:
+            assert np.array_equal(a.traj[c], b.traj[c], equal_nan=True), (m.name, c)
+        assert _summary(b.summary) == _summary(a.summary), m.name
+        alone.append(a)
+    return alone
+
+
 def test_missions_flown_together_give_each_what_it_gives_alone(tmp_path):
     # different sea states, stacks (rate and LOS), paths, gains, durations; one grounded before its first step
     # (the canyon's lowest hull point starts 44.4 m above the floor) and one that ends on its path's end
@@ -59,26 +73,45 @@ def test_missions_flown_together_give_each_what_it_gives_alone(tmp_path):
     # what a campaign's progress bar counts while the batch flies: missions' worth of ticks, from 0 to all of them
     assert told[0] == 0.0 and told[-1] == len(ms) and told == sorted(told), told
     assert any(0 < v < len(ms) for v in told), told
-    ends = []
-    for m, b in zip(ms, together):
-        a = run_mission(m)
-        assert list(b.traj) == list(a.traj)
-        for c in a.traj:
-            assert np.array_equal(a.traj[c], b.traj[c], equal_nan=True), (m.name, c)
-        assert _summary(b.summary) == _summary(a.summary), m.name
-        ends.append(str(a.summary.end_reason))
+    ends = [str(a.summary.end_reason) for a in _as_alone(ms, together)]
     assert ends.count("duration") == len(ms) - 1 and ends[6] == "grounded", ends
     assert len(together[6].traj["t_s"]) == 1 and len(together[0].traj["t_s"]) == 120
 
 
 def test_missions_that_cannot_fly_together_are_refused_with_the_reason(tmp_path):
-    irregular = _mission(tmp_path, "irr", "canyon", duration_s=2.0,
-                         sea={"spectrum": "jonswap", "hs": 2.0, "tp": 8.0, "components": 8, "seed": 1})
-    current = _mission(tmp_path, "cur", "canyon", duration_s=2.0, current={"speed_mps": 0.3, "heading_deg": 90})
+    sensors = _mission(tmp_path, "nav", "canyon", duration_s=2.0, sensors={"suite": "tactical", "seed": 1},
+                       navigation="sensors")
     calm = _mission(tmp_path, "calm", "canyon", duration_s=2.0)
-    assert "sea" in batch_refusal(irregular) and "current" in batch_refusal(current)
+    assert "navigation" in batch_refusal(sensors)
     assert batch_refusal(calm) is None
-    with pytest.raises(ValueError, match="current"):
-        run_missions_batch([calm, current])
+    with pytest.raises(ValueError, match="navigation"):
+        run_missions_batch([calm, sensors])
     with pytest.raises(ValueError, match="physics profile"):
         run_missions_batch([calm, _mission(tmp_path, "p", "canyon", duration_s=2.0, profile="corrected")])
+
+
+def test_missions_in_spectrum_seas_and_currents_fly_together_as_alone(tmp_path):
+    """Each mission keeps its own sea and current in the batch (the batch ROM takes them per boat): short-crested
+    JONSWAP and Pierson-Moskowitz seas of different headings and seeds, a current, a sea with a current, the
+    authors' regular sea and calm water in one batch, at periscope depth where the waves act: every trajectory
+    column and summary figure bit for bit what each mission gives alone."""
+    base = "canyon_periscope_ss5"
+    ms = [
+        _mission(tmp_path, "ss5", base, duration_s=6.0),
+        _mission(tmp_path, "ss4_head", base, duration_s=5.0,
+                 sea={"spectrum": "jonswap", "sea_state": 4, "heading_deg": 0.0, "spreading_s": 10.0,
+                      "components": 16, "seed": 3}, current=None),
+        _mission(tmp_path, "pm", base, duration_s=6.0, sea={"spectrum": "pm", "hs": 2.0, "components": 8, "seed": 9,
+                                                            "heading_deg": 200.0}),
+        _mission(tmp_path, "current", base, duration_s=4.0, sea=None),
+        _mission(tmp_path, "table", base, duration_s=5.0, sea={"sea_state": 5}, current=None),
+        _mission(tmp_path, "calm", base, duration_s=3.0, sea=None, current=None),
+    ]
+    assert ms[0].environment.current.build() is not None and not ms[0].environment.sea.authors_table
+    assert ms[3].environment.sea.build() is None or ms[3].environment.sea.build().calm
+    assert all(batch_refusal(m) is None for m in ms)
+    together = run_missions_batch(ms)
+    _as_alone(ms, together)
+    # the seas act: the missions' depths part within seconds
+    z = [r.traj["z_m"][-1] - r.traj["z_m"][0] for r in together]
+    assert len({round(v, 6) for v in z}) == len(z), z

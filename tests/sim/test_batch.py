@@ -99,6 +99,48 @@ def test_mixed_open_loop_batch_equals_single_runs(calm_model):
     _assert_exact(xe, xs)
 
 
+def test_boats_in_spectrum_seas_and_currents_equal_single_runs(calm_model):
+    """Each boat its own sea and current (``seas=``, ``currents=``): short-crested and long-crested spectrum seas
+    (two boats sharing one), currents with and without a sea, the authors' regular sea with a current, calm water,
+    near the surface where the waves act. Bit for bit the single runs in the exact mode (the boats' flow and
+    pressure integral are the scalar code's, boat by boat), within the tolerance in the default mode."""
+    from bb2_sim.current import Current
+    from bb2_sim.sea import ComponentSea, Cos2sSpreading, JonswapSpectrum, PiersonMoskowitzSpectrum, discretise
+    short = ComponentSea(discretise(JonswapSpectrum(3.25, 9.7, 3.3), 16, seed=5, spreading=Cos2sSpreading(np.pi / 2, 10.0),
+                                    mean_direction_deg=90.0))
+    long_ = ComponentSea(discretise(PiersonMoskowitzSpectrum(2.0), 8, seed=1))
+    seas = [short, None, long_, None, short, None, None]
+    currents = [None, Current(0.5, 45.0), Current(0.3, 0.0), None, None, Current(0.4, 200.0), None]
+    states = [0, 0, 0, 5, 0, 3, 0]
+    waves = [wave_for_sea_state(s, calm_model.params) for s in states]
+    x0 = np.zeros((7, 12))
+    x0[:, 2] = [-18.0, -30.0, -20.0, -22.0, -25.0, -19.0, -40.0]
+    x0[:, 5] = np.radians([0.0, 90.0, 180.0, 45.0, 30.0, 270.0, 10.0])
+    x0[:, 6] = [-4.0, -5.0, -3.0, -4.5, -2.5, -4.0, -5.1444]
+    planes = np.vstack([PLANES, PLANES[1]])
+    rps = np.append(RPS, 1.2861)
+    singles = [Simulator(BB2Model(calm_model.surfaces, sea_state=states[i], sea=seas[i], current=currents[i]), x0[i])
+               for i in range(7)]
+    batch = BatchSimulator(BatchModel(calm_model, waves, seas=seas, currents=currents), x0)
+    exact = BatchSimulator(BatchModel(calm_model, waves, seas=seas, currents=currents, exact=True), x0)
+    n = 200
+    xb, xe, xs = np.empty((n, 7, 12)), np.empty((n, 7, 12)), np.empty((n, 7, 12))
+    for k in range(n):
+        batch.step(planes, rps)
+        exact.step(planes, rps)
+        for s, p_, r in zip(singles, planes, rps):
+            s.step(p_, r)
+        xb[k], xe[k], xs[k] = batch.x, exact.x, [s.x for s in singles]
+    _assert_close(xb, xs)
+    _assert_exact(xe, xs)
+    # the environment acts: each boat differs from the same boat in calm water
+    calm = BatchSimulator(BatchModel(calm_model, n_boats=7, exact=True), x0)
+    for _ in range(n):
+        calm.step(planes, rps)
+    moved = np.abs(exact.x - calm.x)[:, [0, 1, 2, 3, 4]].max(axis=1)
+    assert (moved[[0, 1, 2, 3, 4, 5]] > 1e-3).all() and moved[6] == 0.0, moved
+
+
 def test_batch_evaluation_equals_single_evaluation_with_per_boat_times_and_profile():
     """One evaluation, the corrected profile (every switch: clipping, guards, ...), per-boat times."""
     model = BB2Model(profile="corrected")
@@ -291,7 +333,7 @@ def test_boats_retired_mid_run_leave_the_others_added_mass_memories_alone(calm_m
     _assert_close(np.array(xb), np.array(xs))
 
 
-def test_bad_shapes_and_refused_environments_give_clear_errors(calm_model):
+def test_bad_shapes_and_mismatched_environments_give_clear_errors(calm_model):
     bm = BatchModel(calm_model, n_boats=2)
     with pytest.raises(ValueError, match=r"initial states must be \(2, 12\)"):
         BatchSimulator(bm, np.zeros((3, 12)))
@@ -311,15 +353,19 @@ def test_bad_shapes_and_refused_environments_give_clear_errors(calm_model):
                     bm.new_memory())
     with pytest.raises(ValueError, match="give the waves of the boats or n_boats"):
         BatchModel(calm_model)
-    with pytest.raises(ValueError, match="irregular seas not supported yet"):
+    with pytest.raises(ValueError, match=r"boat 1: a wave must be a bb2_sim.waves.Wave .*give an irregular sea as seas"):
         BatchModel(calm_model, [Wave(), object()])
     from bb2_sim.sea import ComponentSea, JonswapSpectrum, discretise
-    irregular = BB2Model(calm_model.surfaces, sea=ComponentSea(discretise(JonswapSpectrum(2.0, 8.0, 3.3), 8, seed=1)))
-    with pytest.raises(ValueError, match="batch: irregular seas not supported yet"):
-        BatchModel(irregular, n_boats=2)
+    sea = ComponentSea(discretise(JonswapSpectrum(2.0, 8.0, 3.3), 8, seed=1))
+    with pytest.raises(ValueError, match=r"batch: the model must be calm: give each boat its sea \(seas="):
+        BatchModel(BB2Model(calm_model.surfaces, sea=sea), n_boats=2)
     from bb2_sim.current import Current
-    with pytest.raises(ValueError, match="batch: currents not supported yet"):
+    with pytest.raises(ValueError, match=r"batch: the model must have no current: give each boat its current"):
         BatchModel(BB2Model(calm_model.surfaces, current=Current(0.5, 45.0)), n_boats=2)
+    with pytest.raises(ValueError, match="batch: waves for 2 boats, seas for 3 boats"):
+        BatchModel(calm_model, [Wave(), Wave()], seas=[None, sea, None])
+    with pytest.raises(ValueError, match="batch: boat 0: give either a sea state"):
+        BatchModel(calm_model, [wave_for_sea_state(3, calm_model.params)], seas=[sea])
     assert sim.n == 0 and not sim.diverged.any()          # nothing stepped by the refused calls
 
 
@@ -363,6 +409,30 @@ def test_maneuvers_flown_together_give_each_run_maneuver_result(calm_model, subs
     assert batch[4].error is not None and len(batch[4].traj["t_s"]) == 0  # diverged at once, nothing logged
     assert batch[1].traj["t_s"][-1] == pytest.approx(9.0) and batch[0].traj["t_s"][-1] == pytest.approx(14.0)
     assert np.abs(batch[3].traj["eta_cg_m"]).max() > 0.1                # the sea state 5 boat's surface
+
+
+def test_maneuvers_in_their_own_seas_and_currents_fly_together_as_alone(calm_model):
+    """A maneuver's environment (a spectrum sea, a current: ``with_sea``, as ``bb2-sim maneuver --sea-spectrum``
+    and a campaign's maneuver options give it) flies in the batch: every logged column, the sea's elevation above
+    the CG included, bit for bit what ``run_maneuver`` gives it alone."""
+    from bb2_sim.batch.maneuvers import run_maneuvers_batch
+    from bb2_sim.maneuvers import OUTPUT_COLUMNS, build_model, run_maneuver, with_sea
+
+    settings = [
+        with_sea(maneuver_settings("turning-circle", duration=8.0, depth=20.0), {"spectrum": "jonswap", "hs": 2.5,
+                 "tp": 8.0, "components": 12, "seed": 4, "heading_deg": 90.0}, {"speed_mps": 0.4}),
+        with_sea(maneuver_settings("hzz", duration=6.0, depth=18.0), {"spectrum": "pm", "hs": 2.0, "components": 8,
+                 "seed": 2}, None),
+        with_sea(maneuver_settings("depth-heading", duration=7.0), None, {"speed_mps": 0.5, "heading_deg": 90.0}),
+        maneuver_settings("turning-circle", duration=5.0, sea_state=4),
+    ]
+    assert all(s.environment is not None for s in settings[:3])
+    batch = run_maneuvers_batch(settings, calm_model)
+    for s, b in zip(settings, batch):
+        one = run_maneuver(s, build_model(s))
+        for c in OUTPUT_COLUMNS:
+            assert np.array_equal(b.traj[c], one.traj[c], equal_nan=True), (s.name, c)
+    assert np.abs(batch[0].traj["eta_cg_m"]).max() > 0.1 and np.abs(batch[1].traj["eta_cg_m"]).max() > 0.1
 
 
 def test_the_exact_modes_transcendentals_are_the_c_librarys_element_by_element():

@@ -904,26 +904,29 @@ def test_chunks_are_equal_batches_to_the_end():
 
 
 def test_runs_that_cannot_fly_in_a_batch_go_out_one_by_one():
-    """A campaign none of whose runs can fly in a batch (a spectrum sea, a current) was cut into chunks of up to
-    --batch runs like any other, and each worker flew its chunk's runs one after the other and handed them over
-    together: 32 canyon runs in a sea landed, and counted in the progress bar, all at once after six minutes, and a
-    SIGKILL before that lost every finished one.  Such runs now go out one by one; a campaign whose runs can batch,
-    or some of them can (a current varied), keeps its chunks."""
+    """A campaign none of whose runs can fly in a batch (missions on their navigation estimate) was cut into chunks
+    of up to --batch runs like any other, and each worker flew its chunk's runs one after the other and handed them
+    over together: they landed, and counted in the progress bar, all at once, and a SIGKILL before that lost every
+    finished one.  Such runs go out one by one; a campaign whose runs can batch, or some of them can, keeps its
+    chunks.  Spectrum seas and currents fly in the batch ROM (each boat its own): their campaigns keep chunks."""
     from bb2_tools.campaign.engines import chunk_size
 
     vary = MISSION_BATCH_SPEC["vary"]
     assert chunk_size(parse_spec(MISSION_BATCH_SPEC), 64, 2, 128) == 32
-    assert chunk_size(parse_spec({**MISSION_BATCH_SPEC, "vary": {**vary, "current.speed_mps": 0.3}}), 64, 2, 128) == 1
+    sensors = {**MISSION_BATCH_SPEC, "vary": {**vary, "sensors.suite": "tactical", "navigation": "sensors"}}
+    assert chunk_size(parse_spec(sensors), 64, 2, 128) == 1
+    mixed = parse_spec({**MISSION_BATCH_SPEC, "vary": {**vary, "sensors.suite": "tactical",
+                                                       "navigation": ["truth", "sensors"]}})
+    assert chunk_size(mixed, 64, 2, 128) == 32
+    assert chunk_size(parse_spec({**MISSION_BATCH_SPEC, "vary": {**vary, "current.speed_mps": 0.3}}), 64, 2, 128) == 32
     sea = {**MISSION_BATCH_SPEC, "vary": {**{k: v for k, v in vary.items() if k != "sea_state"},
                                          "sea.hs": {"uniform": [1.0, 3.0]}}}      # the default PM sea
-    assert chunk_size(parse_spec(sea), 64, 2, 128) == 1
-    mixed = parse_spec({**MISSION_BATCH_SPEC, "vary": {**vary, "current.speed_mps": [0.0, 0.5]}})
-    assert chunk_size(mixed, 64, 2, 128) == 32
+    assert chunk_size(parse_spec(sea), 64, 2, 128) == 32
     man = {"maneuver": {"name": "turning-circle", "options": {"duration": 5}}, "samples": 64,
            "vary": {"rudder_deg": {"uniform": [10, 30]}}}
     assert chunk_size(parse_spec(man), 64, 2, 128) == 32
     man_sea = {**man, "vary": {**man["vary"], "sea.hs": {"uniform": [1, 2]}}}
-    assert chunk_size(parse_spec(man_sea), 64, 2, 128) == 1
+    assert chunk_size(parse_spec(man_sea), 64, 2, 128) == 32
 
 
 def test_the_progress_bar_counts_what_the_batches_in_flight_have_flown():

@@ -1,0 +1,103 @@
+"""The irregular seas and currents of a batch's boats (one :class:`bb2_sim.sea.Sea` and one
+:class:`bb2_sim.current.Current`, or None, per boat).
+
+A boat in a component sea or a current takes the scalar code's own flow, boat by boat
+(:meth:`bb2_sim.model.BB2Model.flow_in_environment`: the water's velocity at the CG, the planes and the sections,
+the velocity relative to the water, and in a component sea the pressure integral from the same exponentials).
+That per-point work is each boat's own and does not vectorise over boats; every other part of the ROM stays the
+batch's. Each sea keeps its own wave-load grid (:meth:`bb2_sim.hydrostatics.PressureIntegrator.new_wave_grid`),
+so boats in different seas do not rebuild each other's grid levels (30-80 ms each) at every evaluation.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..waves import Wave
+
+
+@dataclass
+class BatchEnvironment:
+    """Per boat: its regular wave (calm for a boat in a component sea), component sea or None, current or None."""
+
+    waves: tuple[Wave, ...]
+    seas: tuple[Any, ...]
+    currents: tuple[Any, ...]
+    _grids: dict[int, Any] = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def of_boats(cls, model: Any, waves: Sequence[Wave] | None, seas: Sequence | None,
+                 currents: Sequence | None, n_boats: int | None = None) -> "BatchEnvironment":
+        """The boats' environments as :class:`bb2_sim.model.BB2Model` takes one (``sea``: an
+        :class:`~bb2_sim.sea.AuthorsTableSea` is its regular wave, a calm sea or current is none).
+        ``waves`` None: ``n_boats`` boats (or as many as ``seas``/``currents``) in the model's sea state."""
+        from ..sea.sea import AuthorsTableSea
+
+        lengths = {name: len(a) for name, a in (("waves", waves), ("seas", seas), ("currents", currents))
+                   if a is not None}
+        if n_boats is not None:
+            lengths.setdefault("n_boats", int(n_boats))
+        if len(set(lengths.values())) > 1:
+            raise ValueError("batch: " + ", ".join(f"{k} for {v} boats" for k, v in lengths.items())
+                             + " (one each per boat)")
+        if not lengths or min(lengths.values()) < 1:
+            raise ValueError("batch: give the waves of the boats or n_boats >= 1")
+        n = next(iter(lengths.values()))
+        ws = list(waves) if waves is not None else [model.wave] * n
+        ss: list[Any] = [None] * n
+        for i, sea in enumerate(seas if seas is not None else ()):
+            if sea is None:
+                continue
+            if not isinstance(ws[i], Wave) or not ws[i].calm:
+                raise ValueError(f"batch: boat {i}: give either a sea state (a wave) or a sea, not both")
+            if isinstance(sea, AuthorsTableSea):
+                ws[i] = sea.wave
+            elif not sea.calm:
+                ss[i] = sea
+        cs = [None if c is None or c.calm else c for c in (currents if currents is not None else [None] * n)]
+        return cls(tuple(ws), tuple(ss), tuple(cs))
+
+    def __len__(self) -> int:
+        return len(self.waves)
+
+    @property
+    def sea_mask(self) -> np.ndarray:
+        """Boats in a component sea (N,)."""
+        return np.array([s is not None for s in self.seas], dtype=bool)
+
+    @property
+    def mask(self) -> np.ndarray:
+        """Boats whose flow is the scalar code's (a component sea or a current) (N,)."""
+        return self.sea_mask | np.array([c is not None for c in self.currents], dtype=bool)
+
+    def grid(self, model: Any, boat: int) -> Any:
+        """The wave-load grid of boat ``boat``'s sea (one per sea object, made on first use)."""
+        sea = self.seas[boat]
+        g = self._grids.get(id(sea))
+        if g is None:
+            g = self._grids[id(sea)] = (sea, model.hydro.new_wave_grid(model._flow_points_body))
+        return g[1]
+
+    def flows(self, model: Any, t, x: np.ndarray, R: np.ndarray, planes_deg: np.ndarray, boats: np.ndarray,
+              rows: np.ndarray, uw: np.ndarray, uvw_rel: np.ndarray, BFM: np.ndarray) -> None:
+        """For the rows ``rows`` (positions in x) of boats ``boats`` (their indices in the batch), the scalar
+        code's flow: uw[:, :, j] (3, 21) body axes, uvw_rel[:, j] (3,) the velocity relative to the water and, for a
+        boat in a component sea, BFM[j] (6,) its pressure-integral loads (the scalar integrator's). x (n, 12);
+        R (3, 3, n); t scalar or (n,); planes_deg (n, 5) the held deflections."""
+        prof = model.profile
+        for j, b in zip(rows.tolist(), boats.tolist()):
+            sea, current = self.seas[b], self.currents[b]
+            tj = t if np.ndim(t) == 0 else float(t[j])
+            Rj = np.ascontiguousarray(R[:, :, j])
+            xj = x[j]
+            grid = None if sea is None else self.grid(model, b)
+            uw_j, rel, loads = model.flow_in_environment(tj, xj, Rj, planes_deg[j], sea, current, self.waves[b],
+                                                         grid=grid)
+            uw[:, :, j] = uw_j.T
+            uvw_rel[:, j] = rel
+            if sea is not None:
+                BFM[j] = loads if loads is not None else model.hydro.loads(
+                    xj[0:3], Rj, tj, self.waves[b], planes_deg[j], clip_emerged=prof.free_surface_clipping, sea=sea,
+                    wave_load_method=model.wave_load_method)
