@@ -123,11 +123,18 @@ class BB2Model:
         else:
             uw_e = np.zeros((len(e), 3))
         if current is not None:
-            uc = current.velocity_earth(e[:, 2])
+            uc, (u, v, w) = self.current_flow(e, R, current, u, v, w)
             uw_e = uw_e + uc
-            uc_cg = uc[0] @ R
-            u, v, w = u - float(uc_cg[0]), v - float(uc_cg[1]), w - float(uc_cg[2])
         return uw_e @ R, (u, v, w), BFM
+
+    @staticmethod
+    def current_flow(e: np.ndarray, R: np.ndarray, current, u: float, v: float, w: float
+                     ) -> tuple[np.ndarray, tuple[float, float, float]]:
+        """The ``current``'s velocity (P, 3) earth axes at the earth flow points ``e`` (P, 3) (row 0 the CG), and
+        the body velocity (u, v, w) relative to the water at the CG (R: the body->earth rotation)."""
+        uc = current.velocity_earth(e[:, 2])
+        uc_cg = uc[0] @ R
+        return uc, (u - float(uc_cg[0]), v - float(uc_cg[1]), w - float(uc_cg[2]))
 
     def evaluate(self, t: float, x: np.ndarray, act: ActuatorOutputs, dmem: DerivativeMemory) -> Evaluation:
         """Full model evaluation at (t, x) with the held actuator outputs and the derivative memory."""

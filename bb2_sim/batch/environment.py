@@ -80,24 +80,50 @@ class BatchEnvironment:
             g = self._grids[id(sea)] = (sea, model.hydro.new_wave_grid(model._flow_points_body))
         return g[1]
 
-    def flows(self, model: Any, t, x: np.ndarray, R: np.ndarray, planes_deg: np.ndarray, boats: np.ndarray,
+    def flows(self, model: Any, pressure: Any, t, x: np.ndarray, R: np.ndarray, act: Any, boats: np.ndarray,
               rows: np.ndarray, uw: np.ndarray, uvw_rel: np.ndarray, BFM: np.ndarray) -> None:
         """For the rows ``rows`` (positions in x) of boats ``boats`` (their indices in the batch), the scalar
         code's flow: uw[:, :, j] (3, 21) body axes, uvw_rel[:, j] (3,) the velocity relative to the water and, for a
-        boat in a component sea, BFM[j] (6,) its pressure-integral loads (the scalar integrator's). x (n, 12);
-        R (3, 3, n); t scalar or (n,); planes_deg (n, 5) the held deflections."""
+        boat in a component sea, BFM[j] (6,) its pressure-integral loads, bit for bit
+        :meth:`BB2Model.flow_in_environment`'s. The boats in a component sea on the wave-load grid (the default,
+        without clipping) take it in one pass (:meth:`.pressure.BatchPressure.sea_loads_and_orbital_velocity`: the
+        grid boat by boat, the rest together), the others the scalar method boat by boat.
+        x (n, 12); R (3, 3, n); t scalar or (n,); act: the held actuator outputs (planes (n, 5), their rotations);
+        pressure: the batch's :class:`.pressure.BatchPressure`."""
         prof = model.profile
-        for j, b in zip(rows.tolist(), boats.tolist()):
+        fused_ok = model.wave_load_method == "grid" and not prof.free_surface_clipping
+        fused = [k for k, b in enumerate(boats.tolist())
+                 if fused_ok and self.seas[b] is not None and self.seas[b].components is not None]
+        rest = sorted(set(range(len(rows))) - set(fused))
+        for k in rest:
+            j, b = int(rows[k]), int(boats[k])
             sea, current = self.seas[b], self.currents[b]
             tj = t if np.ndim(t) == 0 else float(t[j])
             Rj = np.ascontiguousarray(R[:, :, j])
             xj = x[j]
-            grid = None if sea is None else self.grid(model, b)
-            uw_j, rel, loads = model.flow_in_environment(tj, xj, Rj, planes_deg[j], sea, current, self.waves[b],
-                                                         grid=grid)
+            uw_j, rel, loads = model.flow_in_environment(tj, xj, Rj, act.planes_deg[j], sea, current, self.waves[b])
             uw[:, :, j] = uw_j.T
             uvw_rel[:, j] = rel
             if sea is not None:
                 BFM[j] = loads if loads is not None else model.hydro.loads(
-                    xj[0:3], Rj, tj, self.waves[b], planes_deg[j], clip_emerged=prof.free_surface_clipping, sea=sea,
-                    wave_load_method=model.wave_load_method)
+                    xj[0:3], Rj, tj, self.waves[b], act.planes_deg[j], clip_emerged=prof.free_surface_clipping,
+                    sea=sea, wave_load_method=model.wave_load_method)
+        if not fused:
+            return
+        jf, bf = rows[fused], boats[fused]
+        Rf = np.ascontiguousarray(R[:, :, jf].transpose(2, 0, 1))                  # (m, 3, 3)
+        tf = t if np.ndim(t) == 0 else t[jf]
+        pos = x[jf, 0:3]
+        loads, uw_e = pressure.sea_loads_and_orbital_velocity(
+            pos, Rf, tf, pressure.exact_rotations(act.rotations)[jf],
+            [(self.seas[b], self.grid(model, b)) for b in bf.tolist()], model._flow_points_body,
+            q12=not prof.wave_velocity_in_phase)
+        BFM[jf] = loads
+        for k, (j, b) in enumerate(zip(jf.tolist(), bf.tolist())):
+            current = self.currents[b]
+            if current is not None:                  # the scalar code's, boat by boat
+                e = x[j, 0:3] + model._flow_points_body @ Rf[k].T
+                uc, uvw_rel[:, j] = model.current_flow(e, Rf[k], current, float(x[j, 6]), float(x[j, 7]),
+                                                       float(x[j, 8]))
+                uw_e[k] = uw_e[k] + uc
+        uw[:, :, jf] = np.matmul(uw_e, Rf).transpose(2, 1, 0)

@@ -185,7 +185,9 @@ class BatchModel:
         if len(env):
             rel = np.array([u, v, w])
             BFM_env = np.empty((n, 6))
-            self.environment.flows(self.model, t, x, R, act.planes_deg, ids[env], env, uw, rel, BFM_env)
+            if act.rotations is None:
+                act.rotations = self.pressure.prepare(act.planes_deg)
+            self.environment.flows(self.model, self.pressure, t, x, R, act, ids[env], env, uw, rel, BFM_env)
             uh, vh, wh = rel
         uw_cg = (0.0, 0.0, 0.0) if uw is None else uw[:, 0]         # calm: the scalar code's zeros
         uw_planes = np.zeros((3, 5, 1)) if uw is None else uw[:, 1:6]

@@ -235,6 +235,27 @@ class BatchPressure:
         G = rg * G - rg * self._hydrostatic_sums(v[..., 1, :], c[..., 1])
         return self._sum_blocks(G, Ri)
 
+    def sea_loads_and_orbital_velocity(self, pos: np.ndarray, R: np.ndarray, t, Ri: np.ndarray, seas: list,
+                                       points_body: np.ndarray, q12: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Loads (n, 6) of n boats in component seas (not clipped) and the seas' orbital velocities (n, P, 3) earth
+        axes at ``points_body`` (P, 3), bit for bit each boat's
+        :meth:`PressureIntegrator.loads_and_orbital_velocity`: the grid's per-point pass boat by boat (each sea on
+        its own grid), the blocks' rows, hydrostatic sums and the planes' rotation and moving for all boats at once
+        (the scalar code's products: numpy's stacked matmul calls them boat by boat).
+        pos (n, 3) CG earth positions; R (n, 3, 3) body->earth rotations; t scalar or (n,); Ri (n, 5, 3, 3) the
+        scalar code's hinge rotations; seas: per boat (its sea, its wave-load grid of ``points_body``)."""
+        n = len(pos)
+        v = np.concatenate([R[:, None], np.matmul(R[:, None], Ri)], axis=1)                 # (n, B, 3, 3)
+        c = np.concatenate([pos[:, None], np.matmul(self._pivots, R.transpose(0, 2, 1)) + pos[:, None]], axis=1)
+        G = np.empty((n, len(self._S0), 6))
+        uw = np.empty((n, len(points_body), 3))
+        for j, (sea, grid) in enumerate(seas):
+            tj = t if np.ndim(t) == 0 else float(t[j])
+            G[j], uw[j] = grid.block_sums_and_orbital_velocity(sea.components, v[j], c[j], tj, q12=q12)
+        rg = self.rho * self.g
+        hydro = (-rg) * self._hydrostatic_sums(v[..., 2, :], c[..., 2])
+        return self._sum_blocks(rg * G + hydro, Ri), uw
+
 
 def _plane_load(P: np.ndarray, R: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Body load [F, M] (6,) of a plane with pivot P and rotation R from its block sums g (6,) in its own frame:
