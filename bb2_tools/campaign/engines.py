@@ -18,7 +18,7 @@ import os
 from typing import Any, Callable, Iterable
 
 from bb2_tools.campaign.spec import CampaignSpec
-from bb2_tools.campaign.worker import BATCH_MIN, batched, run_tasks, smallest_batch
+from bb2_tools.campaign.worker import BATCH_MIN, batched, may_batch, run_tasks
 
 __all__ = ["LocalEngine", "RayEngine", "make_engine", "chunk_size", "ENGINES", "DEFAULT_BATCH"]
 
@@ -60,17 +60,15 @@ def chunk_size(spec: CampaignSpec, total: int, workers: int, batch: int = DEFAUL
     runner equal chunks of at most ``batch``, as many as a multiple of the workers (1000 runs, 2 workers, batch
     128: eight chunks of 125), so that every worker flies full batches to the end (a share recomputed from the
     runs left would shrink the last chunks below :data:`~bb2_tools.campaign.worker.BATCH_MIN` and fly them one
-    by one, at half the batch's speed).  A share below the campaign's smallest batch
-    (:func:`~bb2_tools.campaign.worker.smallest_batch`: 16 runs, 32 in spectrum seas), or a campaign none of whose
-    runs can fly in a batch (missions on their navigation estimate): 1, the runs go out one by one, each landing as
-    it finishes."""
+    by one, at half the batch's speed).  A share below BATCH_MIN, or a campaign none of whose runs can fly in a
+    batch (:func:`~bb2_tools.campaign.worker.may_batch`: missions on their navigation estimate): 1, the runs go
+    out one by one, each landing as it finishes."""
     if not batched(spec) or batch < BATCH_MIN or total <= 0:
         return 1
     workers = max(1, workers)
     rounds = math.ceil(total / (workers * int(batch)))
     share = math.ceil(total / (workers * rounds))
-    least = smallest_batch(spec) if share >= BATCH_MIN else None
-    return share if least is not None and share >= least else 1
+    return share if share >= BATCH_MIN and may_batch(spec) else 1
 
 
 def _take(pending: collections.deque, n: int) -> list[int]:

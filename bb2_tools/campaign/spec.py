@@ -226,7 +226,7 @@ class CampaignSpec:
     graph_dir: str | None = None          #: --graph: each run flies the ROS graph, bags under this directory
     notes: tuple[str, ...] = ()           #: what the campaign chose that the SPEC left open (default_sea)
     _unit: np.ndarray | None = field(default=None, repr=False, compare=False)
-    _smallest_batch: float | None = field(default=None, repr=False, compare=False)  #: worker.smallest_batch
+    _may_batch: bool | None = field(default=None, repr=False, compare=False)   #: worker.may_batch, remembered
 
     # -- the design
     @property

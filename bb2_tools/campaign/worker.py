@@ -188,13 +188,6 @@ def run_task(spec: CampaignSpec, index: int) -> dict[str, Any]:
 
 BATCH_MIN = 16
 """Fewest runs flown together: below about 20 boats the batch ROM costs more per boat than single runs."""
-BATCH_MIN_OWN_FLOW = 32
-"""Fewest runs flown together when each boat has a spectrum sea or a current of its own: their per-point flow and
-wave pressure stay per boat, so the batch pays only from more boats (16 canyon missions in seas: 1.07x their runs
-alone; 32: 1.4x)."""
-OWN_FLOW = "own flow"
-"""The last part of a batch group's key whose runs each have a spectrum sea or a current
-(:data:`BATCH_MIN_OWN_FLOW`)."""
 BATCH_MEMORY_BYTES = 512e6
 """At most this much of trajectories held by one batch (its boats' logged rows): longer runs fly in smaller
 batches, or alone."""
@@ -206,77 +199,58 @@ def batched(spec: CampaignSpec) -> bool:
     return spec.target in ("maneuver", "mission") and not spec.graph_dir
 
 
-def _own_flow(environment: Any) -> str:
-    """:data:`OWN_FLOW` for a run with a spectrum sea or a current (``environment``: a
-    :class:`bb2_sim.environment.Environment` or None), else ""."""
-    own = environment is not None and (not environment.sea.authors_table or environment.current.build() is not None)
-    return OWN_FLOW if own else ""
-
-
 def _mission_item(spec: CampaignSpec, i: int) -> tuple[Any, Any]:
-    """Run ``i``'s mission and its batch group (hull, profile, substeps, :func:`_own_flow`), or None when it flies
-    alone (:func:`bb2_mission.batch.batch_refusal`: navigation on sensors)."""
+    """Run ``i``'s mission and its batch group (hull, profile, substeps), or None when it flies alone
+    (:func:`bb2_mission.batch.batch_refusal`: navigation on sensors)."""
     from bb2_mission.batch import batch_refusal
 
     m = build_mission(spec, spec.document(i))
-    return m, ((str(m.hull), str(m.profile), m.substeps, _own_flow(m.environment)) if batch_refusal(m) is None
-               else None)
+    return m, ((str(m.hull), str(m.profile), m.substeps) if batch_refusal(m) is None else None)
 
 
 def _maneuver_item(spec: CampaignSpec, i: int) -> tuple[Any, Any]:
-    """Run ``i``'s maneuver settings and its batch group (profile, duration, substeps, :func:`_own_flow`)."""
+    """Run ``i``'s maneuver settings and its batch group (profile, duration, substeps)."""
     s = maneuver_settings_of(spec, spec.document(i))
-    return s, (s.profile, s.duration, s.substeps, _own_flow(s.environment))
-
-
-def batch_min(key: Any) -> int:
-    """Fewest runs of batch group ``key`` flown together: :data:`BATCH_MIN`, or :data:`BATCH_MIN_OWN_FLOW` for runs
-    each with a spectrum sea or a current."""
-    return BATCH_MIN_OWN_FLOW if key[-1] == OWN_FLOW else BATCH_MIN
+    return s, (s.profile, s.duration, s.substeps)
 
 
 BATCH_SAMPLE = 8
-"""Runs looked at, spread over the campaign, to tell whether any of them can fly in a batch, and in which
-(:func:`smallest_batch`)."""
+"""Runs looked at, spread over the campaign, to tell whether any of them can fly in a batch (:func:`may_batch`)."""
 
 
-def smallest_batch(spec: CampaignSpec, sample: int = BATCH_SAMPLE) -> int | None:
-    """The fewest runs of ``spec`` that fly together (:func:`batch_min` of the groups of ``sample`` runs spread over
-    the campaign: the first, the last, evenly between), or None when the runs may not fly together
-    (:func:`batched`) or none of those has a batch group.  A campaign whose runs all fly alone (missions on their
-    navigation estimate: :func:`bb2_mission.batch.batch_refusal`), or whose chunks would be too small for its
-    batches (fewer than 32 runs in spectrum seas), gains nothing from chunks of many runs and would hold each
-    finished run in its worker until the whole chunk is done: the engines then send its runs one by one
-    (:func:`bb2_tools.campaign.engines.chunk_size`), so each lands, and counts in the progress, as it finishes.
-    Remembered on the spec."""
-    if spec._smallest_batch is None:
+def may_batch(spec: CampaignSpec, sample: int = BATCH_SAMPLE) -> bool:
+    """Whether the runs of ``spec`` may fly together (:func:`batched`) and any of ``sample`` runs spread over the
+    campaign (the first, the last, evenly between) has a batch group.  A campaign whose runs all fly alone
+    (missions on their navigation estimate: :func:`bb2_mission.batch.batch_refusal`) gains nothing from chunks of
+    many runs and
+    would hold each finished run in its worker until the whole chunk is done: the engines then send its runs one
+    by one (:func:`bb2_tools.campaign.engines.chunk_size`), so each lands, and counts in the progress, as it
+    finishes.  Remembered on the spec."""
+    if spec._may_batch is None:
         n, item_of = spec.n_runs, (_mission_item if spec.target == "mission" else _maneuver_item)
-        found = math.inf
+        found = False
         if batched(spec) and n > 0:
             for i in sorted({round(k * (n - 1) / max(1, sample - 1)) for k in range(min(sample, n))}):
                 try:
-                    key = item_of(spec, i)[1]
+                    found = item_of(spec, i)[1] is not None
                 except Exception:  # noqa: BLE001 -- a run that does not build: its row says why, later
                     continue
-                if key is not None:
-                    found = min(found, batch_min(key))
-                if found == BATCH_MIN:
+                if found:
                     break
-        spec._smallest_batch = found
-    return None if spec._smallest_batch == math.inf else int(spec._smallest_batch)
+        spec._may_batch = found
+    return spec._may_batch
 
 
 def _batches(groups: dict[Any, list[tuple[int, Any]]], run_bytes) -> list[list[tuple[int, Any]]]:
-    """The groups cut into batches of at least :func:`batch_min` runs and at most :data:`BATCH_MEMORY_BYTES` of
+    """The groups cut into batches of at least :data:`BATCH_MIN` runs and at most :data:`BATCH_MEMORY_BYTES` of
     trajectories (``run_bytes(key, group)``: the most one run of the group holds); a group too small for a batch
     is left out (flown alone)."""
     batches = []
     for key, group in groups.items():
-        least = batch_min(key)
         most = int(BATCH_MEMORY_BYTES // run_bytes(key, group))
-        size = max(least, math.ceil(len(group) / max(1, math.ceil(len(group) / max(1, most)))))
-        batches += [b for b in (group[k:k + size] for k in range(0, len(group), size)) if len(b) >= least] \
-            if most >= least else []
+        size = max(BATCH_MIN, math.ceil(len(group) / max(1, math.ceil(len(group) / max(1, most)))))
+        batches += [b for b in (group[k:k + size] for k in range(0, len(group), size)) if len(b) >= BATCH_MIN] \
+            if most >= BATCH_MIN else []
     return batches
 
 
@@ -284,12 +258,12 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int], on_progress: Callable[
               ) -> list[dict[str, Any]]:
     """The results rows of runs ``indices`` (what the engines call for a chunk of runs; never raises).
 
-    Runs that can fly together, at least :func:`batch_min` of them, fly as one batch of the batch ROM in its exact
+    Runs that can fly together, at least :data:`BATCH_MIN` of them, fly as one batch of the batch ROM in its exact
     mode (bit for bit what each gives alone, so the same figures whatever the chunking, the engine or the number
-    of workers): maneuvers of one physics profile, duration and ``substeps``, with
-    :func:`bb2_sim.batch.maneuvers.run_maneuvers_batch`; missions of one hull, profile and ``substeps`` flying on the
-    truth, with :func:`bb2_mission.batch.run_missions_batch` (each mission's stack still steps alone); each in its
-    own sea and current, the runs with a spectrum sea or a current in batches of their own.  A run that diverged in
+    of workers): maneuvers of one physics profile, duration and ``substeps`` in the authors' sea states (no
+    ``environment``), with :func:`bb2_sim.batch.maneuvers.run_maneuvers_batch`; missions of one hull, profile and
+    ``substeps`` in the authors' sea states, without current, flying on the truth, with
+    :func:`bb2_mission.batch.run_missions_batch` (each mission's stack still steps alone).  A run that diverged in
     the batch is flown again alone (its message is then the single run's), and so is every other run.  Each row's
     wall time is its share of its batch's.  ``on_progress(done)``: how many runs' worth of the chunk are flown so far
     (a batch's boats by their ticks, a run alone when it ends), never decreasing, ``len(indices)`` at most."""

@@ -908,54 +908,25 @@ def test_runs_that_cannot_fly_in_a_batch_go_out_one_by_one():
     of up to --batch runs like any other, and each worker flew its chunk's runs one after the other and handed them
     over together: they landed, and counted in the progress bar, all at once, and a SIGKILL before that lost every
     finished one.  Such runs go out one by one; a campaign whose runs can batch, or some of them can, keeps its
-    chunks.  Runs in spectrum seas or currents fly in the batch ROM (each boat its own), in batches of 32 at least:
-    64 of them on two workers keep their chunks of 32, 32 of them (shares of 16) go out one by one."""
+    chunks.  Spectrum seas and currents fly in the batch ROM (each boat its own): their campaigns keep chunks."""
     from bb2_tools.campaign.engines import chunk_size
 
     vary = MISSION_BATCH_SPEC["vary"]
     assert chunk_size(parse_spec(MISSION_BATCH_SPEC), 64, 2, 128) == 32
-    assert chunk_size(parse_spec(MISSION_BATCH_SPEC), 32, 2, 128) == 16
     sensors = {**MISSION_BATCH_SPEC, "vary": {**vary, "sensors.suite": "tactical", "navigation": "sensors"}}
     assert chunk_size(parse_spec(sensors), 64, 2, 128) == 1
     mixed = parse_spec({**MISSION_BATCH_SPEC, "vary": {**vary, "sensors.suite": "tactical",
                                                        "navigation": ["truth", "sensors"]}})
     assert chunk_size(mixed, 64, 2, 128) == 32
-    current = parse_spec({**MISSION_BATCH_SPEC, "vary": {**vary, "current.speed_mps": 0.3}})
-    assert chunk_size(current, 64, 2, 128) == 32 and chunk_size(current, 32, 2, 128) == 1
+    assert chunk_size(parse_spec({**MISSION_BATCH_SPEC, "vary": {**vary, "current.speed_mps": 0.3}}), 64, 2, 128) == 32
     sea = {**MISSION_BATCH_SPEC, "vary": {**{k: v for k, v in vary.items() if k != "sea_state"},
                                          "sea.hs": {"uniform": [1.0, 3.0]}}}      # the default PM sea
-    assert chunk_size(parse_spec(sea), 64, 2, 128) == 32 and chunk_size(parse_spec(sea), 32, 2, 128) == 1
-    some_current = parse_spec({**MISSION_BATCH_SPEC, "vary": {**vary, "current.speed_mps": [0.0, 0.5]}})
-    assert chunk_size(some_current, 32, 2, 128) == 16          # the calm half may batch in chunks of 16
+    assert chunk_size(parse_spec(sea), 64, 2, 128) == 32
     man = {"maneuver": {"name": "turning-circle", "options": {"duration": 5}}, "samples": 64,
            "vary": {"rudder_deg": {"uniform": [10, 30]}}}
     assert chunk_size(parse_spec(man), 64, 2, 128) == 32
     man_sea = {**man, "vary": {**man["vary"], "sea.hs": {"uniform": [1, 2]}}}
-    assert chunk_size(parse_spec(man_sea), 64, 2, 128) == 32 and chunk_size(parse_spec(man_sea), 32, 2, 128) == 1
-
-
-def test_runs_in_their_own_seas_fly_in_batches_of_their_own(monkeypatch):
-    """A chunk mixing calm runs and runs with a current flies them in separate batches: the calm ones together from
-    16 runs, those with a current only from 32 (fewer fly alone); every row as the run alone gives it."""
-    from bb2_tools.campaign import worker
-
-    spec = parse_spec({**MISSION_BATCH_SPEC, "samples": 20,
-                       "vary": {**MISSION_BATCH_SPEC["vary"], "current.speed_mps": [0.0, 0.4]}})
-    batches: list[list[float]] = []
-    real = worker._fly_together
-
-    def spy(spec_, indices, item_of, fly, **kw):
-        def fly_spy(items, on_progress):
-            batches.append(sorted({float(m.environment.current.speed_mps) for m in items}) + [len(items)])
-            return fly(items, on_progress)
-        return real(spec_, indices, item_of, fly_spy, **kw)
-
-    monkeypatch.setattr(worker, "_fly_together", spy)
-    rows = worker.run_tasks(spec, list(range(40)))
-    assert batches == [[0.0, 20]], batches                 # 20 calm runs together, the 20 in a current alone
-    assert [r["index"] for r in rows] == list(range(40)) and {r["status"] for r in rows} <= {"ok", "grounded"}
-    for i in (1, 2):                                       # a calm run and one in the current, as alone
-        assert rows[i] == {**worker.run_task(spec, i), "wall_time_s": rows[i]["wall_time_s"]}
+    assert chunk_size(parse_spec(man_sea), 64, 2, 128) == 32
 
 
 def test_the_progress_bar_counts_what_the_batches_in_flight_have_flown():
