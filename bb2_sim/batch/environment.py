@@ -1,12 +1,14 @@
 """The irregular seas and currents of a batch's boats (one :class:`bb2_sim.sea.Sea` and one
 :class:`bb2_sim.current.Current`, or None, per boat).
 
-A boat in a component sea or a current takes the scalar code's own flow, boat by boat
-(:meth:`bb2_sim.model.BB2Model.flow_in_environment`: the water's velocity at the CG, the planes and the sections,
-the velocity relative to the water, and in a component sea the pressure integral from the same exponentials).
-That per-point work is each boat's own and does not vectorise over boats; every other part of the ROM stays the
-batch's. Each sea keeps its own wave-load grid (:meth:`bb2_sim.hydrostatics.PressureIntegrator.new_wave_grid`),
-so boats in different seas do not rebuild each other's grid levels (30-80 ms each) at every evaluation.
+A boat in a component sea or a current takes the scalar code's own flow (the water's velocity at the CG, the planes
+and the sections, the velocity relative to the water, and in a component sea the pressure integral from the same
+exponentials as :meth:`bb2_sim.model.BB2Model.flow_in_environment` gives them), bit for bit. In a component sea on
+the wave-load grid (the default) each boat's grid pass is its own, everything around it is done for all such boats
+at once (:meth:`bb2_sim.batch.pressure.BatchPressure.sea_loads_and_orbital_velocity`); a current, and a sea on the
+direct method or with free-surface clipping, go through the scalar method boat by boat. Each sea keeps its own
+wave-load grid (:meth:`bb2_sim.hydrostatics.PressureIntegrator.new_wave_grid`), so boats in different seas do not
+rebuild each other's grid levels (30-80 ms each) at every evaluation.
 """
 from __future__ import annotations
 
@@ -28,24 +30,19 @@ class BatchEnvironment:
     _grids: dict[int, Any] = field(default_factory=dict, repr=False)
 
     @classmethod
-    def of_boats(cls, model: Any, waves: Sequence[Wave] | None, seas: Sequence | None,
-                 currents: Sequence | None, n_boats: int | None = None) -> "BatchEnvironment":
+    def of_boats(cls, waves: Sequence[Wave], seas: Sequence | None, currents: Sequence | None) -> "BatchEnvironment":
         """The boats' environments as :class:`bb2_sim.model.BB2Model` takes one (``sea``: an
-        :class:`~bb2_sim.sea.AuthorsTableSea` is its regular wave, a calm sea or current is none).
-        ``waves`` None: ``n_boats`` boats (or as many as ``seas``/``currents``) in the model's sea state."""
+        :class:`~bb2_sim.sea.AuthorsTableSea` is its regular wave, a calm sea or current is none); ``seas`` and
+        ``currents`` None: none."""
         from ..sea.sea import AuthorsTableSea
 
         lengths = {name: len(a) for name, a in (("waves", waves), ("seas", seas), ("currents", currents))
                    if a is not None}
-        if n_boats is not None:
-            lengths.setdefault("n_boats", int(n_boats))
         if len(set(lengths.values())) > 1:
             raise ValueError("batch: " + ", ".join(f"{k} for {v} boats" for k, v in lengths.items())
                              + " (one each per boat)")
-        if not lengths or min(lengths.values()) < 1:
-            raise ValueError("batch: give the waves of the boats or n_boats >= 1")
-        n = next(iter(lengths.values()))
-        ws = list(waves) if waves is not None else [model.wave] * n
+        n = len(waves)
+        ws = list(waves)
         ss: list[Any] = [None] * n
         for i, sea in enumerate(seas if seas is not None else ()):
             if sea is None:

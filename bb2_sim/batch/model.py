@@ -14,8 +14,9 @@ boat runs the scalar pressure code itself.
 
 Irregular (component) seas and currents go per boat (``seas=``, ``currents=``): for those boats the water's
 velocity at the flow points, the velocity relative to the water and, in a component sea, the pressure integral are
-the scalar code's own (:meth:`BB2Model.flow_in_environment`, boat by boat, each sea with its own wave-load grid),
-everything else is the batch's: bit for bit the single runs in the exact mode, as for the authors' seas. The model
+the scalar code's own (:mod:`.environment`: each sea's grid pass, and a current, boat by boat, each sea with its own
+wave-load grid), everything else is the batch's: bit for bit the single runs in the exact mode, as for the authors'
+seas. The model
 itself must be calm (``BB2Model(sea=...)`` or a current on it is refused: give them per boat).
 """
 from __future__ import annotations
@@ -31,6 +32,7 @@ from ..propeller import PropellerLoad
 from ..waves import Wave, wave_for_sea_state
 from . import libm
 from .actuators import BatchActuatorOutputs
+from .environment import BatchEnvironment
 from .hull import hull_loads
 from .lookup import BatchRomTables, Segments
 from .memory import AddedMassInputs, BatchAddedMassMemory, BatchDerivativeMemory
@@ -38,7 +40,6 @@ from .planes import plane_flow, plane_loads
 from .pressure import BatchPressure
 from .propeller import propeller_load
 from .rigid_body import kinematics, rigid_body_acceleration
-from .environment import BatchEnvironment
 from .waves import BatchWaves
 
 RAD2DEG = 180.0 / np.pi
@@ -96,7 +97,7 @@ class BatchModel:
         self.model = model
         self.params = model.params
         self.profile = model.profile
-        self.environment = BatchEnvironment.of_boats(model, waves, seas, currents)
+        self.environment = BatchEnvironment.of_boats(waves, seas, currents)
         self.waves = BatchWaves.from_waves(self.environment.waves)
         self._env_mask, self._sea_mask = self.environment.mask, self.environment.sea_mask
         self.n_boats = len(self.waves)

@@ -222,10 +222,9 @@ def may_batch(spec: CampaignSpec, sample: int = BATCH_SAMPLE) -> bool:
     """Whether the runs of ``spec`` may fly together (:func:`batched`) and any of ``sample`` runs spread over the
     campaign (the first, the last, evenly between) has a batch group.  A campaign whose runs all fly alone
     (missions on their navigation estimate: :func:`bb2_mission.batch.batch_refusal`) gains nothing from chunks of
-    many runs and
-    would hold each finished run in its worker until the whole chunk is done: the engines then send its runs one
-    by one (:func:`bb2_tools.campaign.engines.chunk_size`), so each lands, and counts in the progress, as it
-    finishes.  Remembered on the spec."""
+    many runs and would hold each finished run in its worker until the whole chunk is done: the engines then send
+    its runs one by one (:func:`bb2_tools.campaign.engines.chunk_size`), so each lands, and counts in the progress,
+    as it finishes.  Remembered on the spec."""
     if spec._may_batch is None:
         n, item_of = spec.n_runs, (_mission_item if spec.target == "mission" else _maneuver_item)
         found = False
@@ -260,10 +259,10 @@ def run_tasks(spec: CampaignSpec, indices: Sequence[int], on_progress: Callable[
 
     Runs that can fly together, at least :data:`BATCH_MIN` of them, fly as one batch of the batch ROM in its exact
     mode (bit for bit what each gives alone, so the same figures whatever the chunking, the engine or the number
-    of workers): maneuvers of one physics profile, duration and ``substeps`` in the authors' sea states (no
-    ``environment``), with :func:`bb2_sim.batch.maneuvers.run_maneuvers_batch`; missions of one hull, profile and
-    ``substeps`` in the authors' sea states, without current, flying on the truth, with
-    :func:`bb2_mission.batch.run_missions_batch` (each mission's stack still steps alone).  A run that diverged in
+    of workers): maneuvers of one physics profile, duration and ``substeps``, with
+    :func:`bb2_sim.batch.maneuvers.run_maneuvers_batch`; missions of one hull, profile and ``substeps`` flying on the
+    truth, with :func:`bb2_mission.batch.run_missions_batch` (each mission's stack still steps alone); each run in
+    its own sea and current.  A run that diverged in
     the batch is flown again alone (its message is then the single run's), and so is every other run.  Each row's
     wall time is its share of its batch's.  ``on_progress(done)``: how many runs' worth of the chunk are flown so far
     (a batch's boats by their ticks, a run alone when it ends), never decreasing, ``len(indices)`` at most."""
