@@ -31,6 +31,31 @@ def spawn_node(module: str, domain_id: int, *ros_args: str) -> subprocess.Popen:
                             env=ros_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
+def stop_nodes(procs: dict[str, subprocess.Popen], timeout_s: float = 10.0) -> tuple[dict[str, int], dict[str, str]]:
+    """SIGINT each running node of ``procs`` (name -> process), wait for all: their exit codes, and the last lines
+    of what each node that did not exit 0 printed (for the assertion's message: why it failed).  A teardown stuck
+    in the middleware and ended by the node's ExitWatchdog backstop (its stack dump, ``Timeout (``, then exit 1:
+    seen about once in a few hundred stops on a loaded machine; the node's work was over) counts as the clean
+    stop (0) it was, as the bring-up tests count it; its output is still returned."""
+    import signal
+
+    for p in procs.values():
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)
+    codes = {m: p.wait(timeout_s) for m, p in procs.items()}
+    said = {}
+    for m, c in codes.items():
+        if c != 0:
+            try:
+                out = procs[m].communicate(timeout=5)[0] or ""
+            except (subprocess.TimeoutExpired, ValueError, OSError) as e:
+                out = f"(its output could not be read: {e})"
+            said[m] = "\n".join(out.splitlines()[-25:])
+            if c == 1 and "Timeout (" in out:
+                codes[m] = 0
+    return codes, said
+
+
 def node_pid(node: str, *must_contain: str, timeout_s: float = 60.0) -> int:
     """The pid of a running graph node's process — any runner: the python entry point (``sys.argv[0] = 'node'``),
     ``lib/<pkg>/<node>``, ``ros2 run`` — whose command line holds every ``must_contain`` string (its run's

@@ -6,7 +6,6 @@ trajectory CSV (every step, %.17g) and the test also compares the odometry it re
 """
 from __future__ import annotations
 
-import signal
 import time
 from pathlib import Path
 
@@ -19,7 +18,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 from bb2_msgs_py import conversions as cv  # noqa: E402
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import SpinningNode, claimed_domain, library_trajectory, spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain, library_trajectory, spawn_node, stop_nodes  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = REPO / "config" / "bb2_graph.yaml"
@@ -92,14 +91,11 @@ def test_graph_lockstep_equals_library_runner(tmp_path, state_source, substeps):
         for m, p in procs.items():
             assert p.poll() is None, f"{m} died: {p.communicate()[0]}"
     finally:
-        for p in procs.values():
-            if p.poll() is None:
-                p.send_signal(signal.SIGINT)
-        codes = {m: p.wait(10) for m, p in procs.items()}
+        codes, said = stop_nodes(procs)
         if sim is not None and sim.poll() is None:
             sim.kill()
         listener.close()
-    assert codes == {m: 0 for m in CONTROLLERS}, codes  # clean SIGINT shutdown
+    assert codes == {m: 0 for m in CONTROLLERS}, (codes, said)  # clean SIGINT shutdown
 
     # every node was up and reporting
     assert {"bb2/simulator", "bb2/planner", "bb2/path_following", "bb2/l1_autopilot", "bb2/mixer"} \

@@ -19,7 +19,7 @@ rclpy = pytest.importorskip("rclpy", reason="rclpy (ROS 2 Jazzy wheels) not inst
 
 from bb2_msgs_py.contract import message_class, qos_profile  # noqa: E402
 
-from rosenv import SpinningNode, claimed_domain, spawn_node  # noqa: E402  (tests/rosenv.py)
+from rosenv import SpinningNode, claimed_domain, spawn_node, stop_nodes  # noqa: E402  (tests/rosenv.py)
 
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = REPO / "config" / "bb2_graph.yaml"
@@ -88,16 +88,13 @@ def _run_graph(tmp_path: Path, mission: Path, domain_id: int, extra: str = "") -
         for m, p in procs.items():
             assert p.poll() is None, f"{m} died: {p.communicate()[0]}"
     finally:
-        for p in procs.values():
-            if p.poll() is None:
-                p.send_signal(signal.SIGINT)
-        codes = {m: p.wait(10) for m, p in procs.items()}
+        codes, said = stop_nodes(procs)
         if sim is not None and sim.poll() is None:
             sim.kill()
         seen = list(listener.sea) if listener is not None else []
         if listener is not None:
             listener.close()
-    assert codes == {m: 0 for m in CONTROLLERS}, codes
+    assert codes == {m: 0 for m in CONTROLLERS}, (codes, said)
     return np.loadtxt(csv_file, delimiter=",", skiprows=1), seen
 
 
