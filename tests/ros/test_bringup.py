@@ -184,7 +184,11 @@ def test_without_and_no_node_of_the_users_the_run_stops_as_stalled_and_the_launc
                "stall_timeout:=2", f"params_file:={tmp / 'quick_failsafe.yaml'}", f"bag:={tmp / 'stalled'}")
     out = finish(p, 120)
     assert p.returncode == 1, out[-3000:]
-    assert "stalled: stepped on the failsafe for 2 s of wall time" in out and "stall_timeout_s 2)" in out, out[-3000:]
+    # at least the 2 s of stall_timeout: the check comes at the next failsafe step, later on a loaded machine (3 s
+    # once in a clean-clone CI beside two CPU-bound processes), as bb2-launch's stall test allows
+    said = re.search(r"stalled: stepped on the failsafe for (\d+) s of wall time at t = [0-9.]+ s \(lockstep timeout: "
+                     r"[^;]*; stall_timeout_s 2\)", out)
+    assert said and 2 <= int(said.group(1)) <= 10, out[-3000:]
     assert "the simulator exited with code 1: the run failed" in out, out[-3000:]
     # the params file's own stall_timeout_s, which the launch argument overrides, is said
     assert (f"[bb2_bringup] warning: params file {tmp / 'quick_failsafe.yaml'}: /**: stall_timeout_s 30.0 is "
