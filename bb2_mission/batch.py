@@ -87,10 +87,10 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None, *,
     cannot fly in a batch (:func:`batch_refusal`) or the missions differ in hull or profile."""
     from bb2_control.stacks import prepare_stacks
     from bb2_sim.batch import BatchModel, BatchSimulator
+    from bb2_sim.batch.environment import boat_environments
     from bb2_sim.model import BB2Model
     from bb2_sim.profiles import get_profile
     from bb2_sim.state import VehicleState
-    from bb2_sim.waves import Wave, wave_for_sea_state
 
     M = list(missions)
     if not M:
@@ -108,10 +108,7 @@ def run_missions_batch(missions: Sequence[Mission], model: Any = None, *,
     elif model.profile != get_profile(M[0].profile) or model.sea is not None or not model.wave.calm:
         raise ValueError("batch: the model must be the missions' hull and profile in calm water")
     runners = [MissionRunner(m, model) for m in M]
-    waves = [wave_for_sea_state(m.environment.sea.sea_state, model.params) if m.environment.sea.authors_table
-             else Wave() for m in M]
-    seas = [None if m.environment.sea.authors_table else m.environment.sea.build(model.params) for m in M]
-    bm = BatchModel(model, waves, exact=True, seas=seas, currents=[m.environment.current.build() for m in M])
+    bm = BatchModel(model, exact=True, **boat_environments([m.environment for m in M], model.params))
     sim = BatchSimulator(bm, np.array([r.sim.x for r in runners]), h=runners[0].sim.h,
                          substeps=runners[0].sim.substeps)
     views = [_BoatView(sim, i, model) for i in range(len(M))]

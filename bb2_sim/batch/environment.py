@@ -17,7 +17,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..waves import Wave
+from ..waves import Wave, wave_for_sea_state
 
 
 @dataclass
@@ -124,3 +124,18 @@ class BatchEnvironment:
                                                        float(x[j, 8]))
                 uw_e[k] = uw_e[k] + uc
         uw[:, :, jf] = np.matmul(uw_e, Rf).transpose(2, 1, 0)
+
+
+def boat_environments(environments: Sequence[Any], params: Any, sea_states: Sequence[float] | None = None
+                      ) -> dict[str, list]:
+    """:class:`~bb2_sim.batch.BatchModel` keywords (``waves``, ``seas``, ``currents``) of boats each in its
+    :class:`bb2_sim.environment.Environment` as :class:`~bb2_sim.model.BB2Model` takes one
+    (:meth:`~bb2_sim.environment.Environment.model_kwargs`); an environment None: the authors' sea state
+    ``sea_states[i]``, no current."""
+    out: dict[str, list] = {"waves": [], "seas": [], "currents": []}
+    for i, env in enumerate(environments):
+        kw = {"sea_state": sea_states[i]} if env is None else env.model_kwargs(params)
+        out["waves"].append(wave_for_sea_state(kw["sea_state"], params) if "sea_state" in kw else Wave())
+        out["seas"].append(kw.get("sea"))
+        out["currents"].append(kw.get("current"))
+    return out

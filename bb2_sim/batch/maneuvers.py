@@ -15,9 +15,9 @@ import numpy as np
 from ..maneuvers import RAD2DEG, ManeuverSettings
 from ..model import BB2Model
 from ..profiles import get_profile
-from ..waves import Wave, wave_for_sea_state
 from ..xplane import mixing_matrix
 from .autopilot import BatchSpeedPI, BatchV12Autopilot
+from .environment import boat_environments
 from .model import BatchModel
 from .simulator import BatchSimulator
 
@@ -111,25 +111,10 @@ def batch_for_maneuvers(settings: Sequence[ManeuverSettings], model: BB2Model | 
                          f"{S[0].profile!r}")
     if model.sea is not None or model.current is not None:
         raise ValueError("batch: the model must be calm (each maneuver brings its own sea and current)")
-    waves, environments = _environments(S, model.params)
-    bm = BatchModel(model, waves, exact=exact, **environments)
+    bm = BatchModel(model, exact=exact, **boat_environments([s.environment for s in S], model.params,
+                                                              [s.sea_state for s in S]))
     return (BatchSimulator(bm, np.array([s.initial_state() for s in S]), substeps=S[0].substeps),
             BatchManeuverCommander(S))
-
-
-def _environments(S: Sequence[ManeuverSettings], params) -> tuple[list, dict]:
-    """The boats' regular waves, and their component seas and currents (``BatchModel`` keywords), as
-    :func:`bb2_sim.maneuvers.build_model` gives each maneuver its own: the authors' sea-state table, or the
-    settings' environment."""
-    waves, seas, currents = [], [], []
-    for s in S:
-        env = s.environment
-        table = env is None or env.sea.authors_table
-        waves.append(wave_for_sea_state(s.sea_state if env is None else env.sea.sea_state, params) if table
-                     else Wave())
-        seas.append(None if table else env.sea.build(params))
-        currents.append(None if env is None else env.current.build())
-    return waves, {"seas": seas, "currents": currents}
 
 
 def _log_rows(rec, rows: np.ndarray, params, seas: list) -> np.ndarray:

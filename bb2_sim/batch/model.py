@@ -167,6 +167,8 @@ class BatchModel:
         # sea (the scalar code's products: numpy's stacked matmul calls them boat by boat); the boats in a
         # component sea or a current take the scalar code's flow boat by boat (and, in a component sea, its
         # pressure integral), with their velocity relative to the water for the loads
+        if act.rotations is None:                                   # the planes' rotations: held over the step
+            act.rotations = self.pressure.prepare(act.planes_deg)
         ids = np.arange(n) if boats is None else np.asarray(boats)
         env_mask = self._env_mask[ids]
         env = np.flatnonzero(env_mask)
@@ -186,8 +188,6 @@ class BatchModel:
         if len(env):
             rel = np.array([u, v, w])
             BFM_env = np.empty((n, 6))
-            if act.rotations is None:
-                act.rotations = self.pressure.prepare(act.planes_deg)
             self.environment.flows(self.model, self.pressure, t, x, R, act, ids[env], env, uw, rel, BFM_env)
             uh, vh, wh = rel
         uw_cg = (0.0, 0.0, 0.0) if uw is None else uw[:, 0]         # calm: the scalar code's zeros
@@ -215,8 +215,6 @@ class BatchModel:
                                                    kpp_once=prof.kpp_once, sign_u_guard=prof.zero_speed_guard)
 
         # pressure integral (7)
-        if act.rotations is None:
-            act.rotations = self.pressure.prepare(act.planes_deg)
         sea = env[self._sea_mask[ids[env]]] if len(env) else env        # rows in a component sea: loads made above
         if len(sea) == 0:
             BFM = self.pressure.loads(x[:, 0:3], R, t, waves, act.rotations, clip_emerged=prof.free_surface_clipping)
