@@ -531,10 +531,11 @@ COMPOSABLE = tuple(n.name for n in GRAPH_NODES if n.name in NODE_CLASSES)
 wait set: a process of its own)."""
 
 
-def compose_groups(groups: Sequence[str] | None) -> list[tuple[str, ...]]:
+def compose_groups(groups: Sequence[str] | None, option: str = "--group") -> list[tuple[str, ...]]:
     """The process groups of a composed launch: ``groups`` are comma-separated node names (``--group``), each one
     process; ``[]`` (``--compose`` alone) puts every composable node into one.  Nodes in no group run alone.
-    Unknown, repeated or non-composable names are a :class:`LaunchError`."""
+    Unknown, repeated or non-composable names are a :class:`LaunchError` naming ``option`` (the launch files':
+    ``launch argument group``)."""
     if groups is None:
         return []
     if not groups:
@@ -544,16 +545,16 @@ def compose_groups(groups: Sequence[str] | None) -> list[tuple[str, ...]]:
     for g in groups:
         names = tuple(n.strip() for n in g.split(",") if n.strip())
         if not names:
-            raise LaunchError(f"--group {g!r}: no node named")
+            raise LaunchError(f"{option} {g!r}: no node named")
         for n in names:
             if n == RECORDER_NODE_NAME:
-                raise LaunchError("--group: the recorder cannot be composed (it waits on its own wait set); it "
+                raise LaunchError(f"{option}: the recorder cannot be composed (it waits on its own wait set); it "
                                   "runs in a process of its own")
             if n not in COMPOSABLE:
-                raise LaunchError(f"--group: unknown node {n!r}" + did_you_mean(n, COMPOSABLE)
+                raise LaunchError(f"{option}: unknown node {n!r}" + did_you_mean(n, COMPOSABLE)
                                   + f"; composable: {', '.join(COMPOSABLE)}")
             if n in seen:
-                raise LaunchError(f"--group: node {n!r} is in two groups")
+                raise LaunchError(f"{option}: node {n!r} is in two groups")
             seen.add(n)
         out.append(tuple(sorted(names, key=COMPOSABLE.index)))
     return out

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import re
+import shlex
 import signal
 import subprocess
 import sys
@@ -57,7 +58,7 @@ def launch(ws, domain: int, *args: str) -> subprocess.Popen:
     scratch = tmp / "launch_tmp"
     scratch.mkdir(exist_ok=True)
     return subprocess.Popen(["bash", "-c", f"source {install / 'setup.bash'} && exec ros2 launch bb2_bringup "
-                             + " ".join(args)], cwd=tmp, env=dict(env, ROS_DOMAIN_ID=str(domain), TMPDIR=str(scratch)),
+                             + " ".join(map(shlex.quote, args))], cwd=tmp, env=dict(env, ROS_DOMAIN_ID=str(domain), TMPDIR=str(scratch)),
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
 
 
@@ -132,6 +133,28 @@ def test_ros2_launch_compose_true_runs_the_nodes_in_one_container_and_flies_the_
     assert not died_but_teardown_hangs(out), out[-3000:]
     ref = {row[0]: row[1:] for row in library_trajectory(tmp / "short.yaml")}
     got = states(tmp / "composed")
+    assert len(got) == len(ref) == 51, (len(got), len(ref))
+    for t, x in ref.items():
+        assert np.max(np.abs(np.array(got[t][1:13]) - x)) <= 1e-9, t
+
+
+def test_ros2_launch_group_runs_the_control_loop_in_a_container_of_its_own_and_flies_the_same_steps(ws):
+    """``group:=path_following,l1_autopilot,mixer`` (bb2-launch ``--group``): the control loop in one container
+    process, the simulator, the planner and the recorder each in their own; the simulator's exit ends the launch
+    and the recorded states equal the library runner's."""
+    env, install, tmp = ws
+    p = launch(ws, claimed_domain(), "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}",
+               "group:=mixer,path_following,l1_autopilot", f"bag:={tmp / 'grouped'}")
+    out = finish(p, 180)
+    assert p.returncode == 0, out[-3000:]
+    assert "| composed: path_following+l1_autopilot+mixer |" in out, out[-3000:]
+    assert "simulator exited (code 0): stopping the graph" in out, out[-3000:]
+    started = re.findall(r"\[INFO\] \[([\w+-]+)-\d+\]: process started with pid", out)
+    # (launch names a process started with a prefix for it: the planner and the recorder at nice +10)
+    assert sorted(started) == ["nice", "nice", "path_following+l1_autopilot+mixer", "simulator"], started
+    assert not died_but_teardown_hangs(out), out[-3000:]
+    ref = {row[0]: row[1:] for row in library_trajectory(tmp / "short.yaml")}
+    got = states(tmp / "grouped")
     assert len(got) == len(ref) == 51, (len(got), len(ref))
     for t, x in ref.items():
         assert np.max(np.abs(np.array(got[t][1:13]) - x)) <= 1e-9, t
@@ -337,6 +360,14 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("bb2_graph.launch.py", ["without:=mixr"], "launch argument without: unknown node 'mixr' (did you mean "
              "'mixer'?); nodes that may be left out: planner, path_following, l1_autopilot, mixer"),
             ("bb2_graph.launch.py", ["without:=simulator"], "the simulator is the boat itself"),
+            ("bb2_graph.launch.py", ["group:=mixer,recorder"], "launch argument group: the recorder cannot be "
+             "composed"),
+            ("bb2_graph.launch.py", ["group:=mixer;mixr,planner"], "launch argument group: unknown node 'mixr' (did "
+             "you mean 'mixer'?); composable: planner, path_following, l1_autopilot, mixer, simulator"),
+            ("bb2_graph.launch.py", ["group:=mixer,planner;planner,simulator"], "launch argument group: node "
+             "'planner' is in two groups"),
+            ("bb2_graph.launch.py", ["group:=l1_autopilot,mixer", "without:=mixer"], "launch arguments without and "
+             "group both name mixer: a node left out cannot be composed"),
             ("bb2_graph.launch.py", ["mission:=canyn"], "no mission 'canyn' in "),
             ("fleet.launch.py", ["fleet:=canyon_par"], "(did you mean 'canyon_pair'?) (there: canyon_pair)"),
             ("bb2_graph.launch.py", ["stall_timeout:=-1"], "launch argument stall_timeout must be >= 0 and finite, "

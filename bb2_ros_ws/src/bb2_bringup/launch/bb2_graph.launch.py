@@ -13,6 +13,11 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
   params_file  the graph's params file (default share/bb2_bringup/config/bb2_graph.yaml)
   compose      true | false: the planner, the controllers and the simulator composed into one process
                (``ros2 run bb2_ros container``, one executor; bb2-launch --compose), the recorder alone
+  group        '' or NODE,NODE[,...][;NODE,NODE...]: each group of planner, path_following, l1_autopilot, mixer,
+               simulator composed into one container process of its own, the nodes in no group each alone
+               (bb2-launch --group, once per group), e.g. group:=path_following,l1_autopilot,mixer: the control
+               loop in one process, the simulator, the planner and the recorder each in theirs; it sets the
+               grouping whatever compose says
   foxglove     true | false: serve every topic live to Foxglove (``ros2 run bb2_tools foxglove_bridge``, a
                WebSocket on 127.0.0.1:foxglove_port; bb2-launch --foxglove)
   foxglove_port  the Foxglove WebSocket port (default 8765)
@@ -41,7 +46,10 @@ killed by a signal left Fast DDS's shared-memory files in /dev/shm: they are rem
 clean``), as bb2-launch removes them.  The mission, the params file (a node or a parameter the graph does not have:
 ROS would ignore it), the bag directory and the Foxglove port are checked before any node starts, as bb2-launch
 checks them.  Ctrl-C stops every node cleanly.  With ``compose:=true`` the same nodes with the same arguments run in
-one ``container`` process (each node's ROS arguments apply to it alone), whose exit ends the launch.
+one ``container`` process (each node's ROS arguments apply to it alone), whose exit ends the launch; with
+``group:=`` each group runs in a container process of its own (named for its nodes, ``path_following+l1_autopilot+
+mixer``), the process holding the simulator ends the launch and any other's death before the run's end fails it,
+as a node's does.
 """
 from __future__ import annotations
 
@@ -66,9 +74,9 @@ from bb2_sim.names import did_you_mean
 from bb2_sim.outputs import OutputError, claim_run_dir
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
 from bb2_tools.dds_shm import clean_after_kill
-from bb2_tools.launcher import (DEFAULT_STALL_TIMEOUT_S, check_foxglove_port, check_mission, check_params_file,
-                                check_stall_timeout, check_without, launcher_parameters,
-                                params_overridden)
+from bb2_tools.launcher import (BACKGROUND_NODES, COMPOSABLE, DEFAULT_STALL_TIMEOUT_S, check_foxglove_port,
+                                check_mission, check_params_file, check_stall_timeout, check_without,
+                                compose_groups, launcher_parameters, params_overridden, process_name)
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
@@ -82,6 +90,8 @@ ARGUMENTS = {
     "namespace": ("", "'' or NAME: nodes in /NAME, topics /NAME/bb2/... and /NAME/clock"),
     "params_file": (str(SHARE / "config" / "bb2_graph.yaml"), "the graph's ROS 2 params file"),
     "compose": ("false", "true | false: planner, controllers and simulator in one process (the container)"),
+    "group": ("", "'' or NODE,NODE[,...][;NODE,NODE...] of planner, path_following, l1_autopilot, mixer, simulator: "
+                  "each group in one container process, the others alone (e.g. path_following,l1_autopilot,mixer)"),
     "foxglove": ("false", "true | false: serve every topic live to Foxglove (WebSocket on 127.0.0.1:foxglove_port)"),
     "foxglove_port": ("8765", "the Foxglove WebSocket port"),
     "without": ("", "'' or NODE[,NODE...] of planner, path_following, l1_autopilot, mixer: left out, for nodes of "
@@ -185,10 +195,12 @@ def container_arguments(nodes: list[tuple[str, dict]], params: list[str], ns: st
 def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, namespace: str, params_file: str,
          stop_launch: bool = True, compose: bool = False, foxglove_port: int | None = None,
          own_recorder: bool = True, without: tuple[str, ...] = (),
-         stall_timeout_s: float = DEFAULT_STALL_TIMEOUT_S) -> list:
+         stall_timeout_s: float = DEFAULT_STALL_TIMEOUT_S, groups: list[tuple[str, ...]] | None = None) -> list:
     """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch,
     without it the simulator's exit stops this boat's other nodes;
-    ``compose``: every node but the recorder in one container process; ``foxglove_port``: the live Foxglove
+    ``compose``: every node but the recorder (and those left out) in one container process; ``groups``
+    (:func:`checked_groups`; over ``compose``): each group of nodes in a container process of its own, the others
+    alone; ``foxglove_port``: the live Foxglove
     server on that port; ``record`` without ``own_recorder``: recorded by a recorder of the caller's, a fleet's
     (:func:`fleet_recorder`), which the simulator waits for as for its own; ``without``: nodes not started, a
     user's own in their place, :func:`bb2_tools.launcher.check_without`; ``stall_timeout_s``: the simulator stops
@@ -227,20 +239,30 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     # bb2-launch sets them)
     rt = {"callback_priority": CALLBACK_PRIORITY_REALTIME} if time_mode == "realtime" else {}
     sim_values.update(rt)
-    if compose:
-        nodes = [(exe, {**common, "use_sim_time": True, **(rt if exe in REALTIME_CONTROLLERS else {})})
-                 for exe, _bg in controllers]
-        nodes.append(("simulator", {**common, **sim_values}))
-        sim = ExecuteProcess(cmd=[ExecutableInPackage("container", "bb2_ros"),
-                                  *container_arguments(nodes, params, ns)],
-                             name="container" + (f"_{ns}" if ns else ""), output="screen")
-    else:
-        for exe, bg in controllers:
-            actions.append(node("bb2_ros", exe, {"use_sim_time": True, **(rt if exe in REALTIME_CONTROLLERS else {})},
-                                background=bg))
+    if groups is None:
+        groups = [tuple(n for n in COMPOSABLE if n not in without)] if compose else []
+    groups = [g for g in groups if len(g) > 1]        # a group of one node is that node alone
+    grouped = {n for g in groups for n in g}
+    values = {exe: {"use_sim_time": True, **(rt if exe in REALTIME_CONTROLLERS else {})} for exe, _bg in controllers}
+    values["simulator"] = sim_values
+    sim = None
+    for exe, bg in controllers:
+        if exe not in grouped:
+            actions.append(node("bb2_ros", exe, values[exe], background=bg))
             actions.append(watch(actions[-1], who(exe), lambda: bool(run_over)))
-        sim = node("bb2_ros", "simulator", sim_values)
-    what = "container" if compose else "simulator"
+    for g in groups:   # each group's nodes in a container process of its own, in the graph's start order
+        name = process_name(g)
+        proc = ExecuteProcess(cmd=[ExecutableInPackage("container", "bb2_ros"),
+                                   *container_arguments([(exe, {**common, **values[exe]}) for exe in g], params, ns)],
+                              name=name + (f"_{ns}" if ns else ""), output="screen",
+                              prefix=BACKGROUND if set(g) <= set(BACKGROUND_NODES) else None)
+        if "simulator" in g:
+            sim, what = proc, name
+        else:
+            actions.append(proc)
+            actions.append(watch(proc, who(name), lambda: bool(run_over)))
+    if sim is None:
+        sim, what = node("bb2_ros", "simulator", sim_values), "simulator"
     # the boat's other nodes (not a fleet's recorder) go with its run: in a fleet the other boats may fly on (as
     # each boat's bb2-launch stops its own graph); alone the whole launch stops anyway
     own = [act for act in actions if isinstance(act, (Node, ExecuteProcess))]
@@ -265,6 +287,21 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
         actions.append(RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=on_exit)))
     actions.append(sim)   # last: the caller's (a fleet's) handle on this boat's simulator
     return actions
+
+
+def checked_groups(value: str, compose: bool, without: tuple[str, ...] = ()) -> list[tuple[str, ...]]:
+    """The container processes of launch arguments ``group`` (``;``-separated groups of comma-separated nodes, as
+    many ``bb2-launch --group``) and ``compose`` (with no group: every node but the recorder and those ``without``
+    in one), checked as bb2-launch checks them (:func:`bb2_tools.launcher.compose_groups`: an unknown node, the
+    recorder, a node in two groups), and a node both grouped and left out refused."""
+    parts = [g for g in value.split(";") if g.strip()]
+    if not parts:
+        return [tuple(n for n in COMPOSABLE if n not in without)] if compose else []
+    groups = compose_groups(parts, "launch argument group")
+    if clash := [n for g in groups for n in g if n in without]:
+        raise RuntimeError(f"launch arguments without and group both name {', '.join(clash)}: a node left out cannot "
+                           "be composed")
+    return groups
 
 
 def check_time_mode(time_mode: str) -> str:
@@ -358,6 +395,7 @@ def _graph(context):
     check_time_mode(a["time_mode"])
     ns = check_namespace(a["namespace"], "launch argument namespace")  # (launch_ros refuses it later, in its words)
     compose = flag(a["compose"], "compose")
+    groups = checked_groups(a["group"], compose, without)
     overridden = overridden_by_arguments(params_file, a, stall, mission)
     # claimed last, every other check passed: a refused launch leaves no directory behind
     # (a nested namespace as bb2-launch names it: one directory, boat_a_b)
@@ -365,10 +403,11 @@ def _graph(context):
     bag = claim_bag(a["bag"], a["bag_dir"], stem) if record else None
     with released_on_error(bag):
         acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=ns,
-                    params_file=params_file, compose=compose, foxglove_port=fox_port, without=without,
-                    stall_timeout_s=stall)
+                    params_file=params_file, foxglove_port=fox_port, without=without, stall_timeout_s=stall,
+                    groups=groups)
     said = LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
-                       + (" | composed" if compose else "")
+                       + (f" | composed: {', '.join(process_name(g) for g in groups if len(g) > 1)}" if groups
+                          else "")
                        + (f" | namespace /{ns}" if ns else "")
                        + (f" | without {', '.join(without)} (your nodes in their place)" if without else "")
                        + (f" | bag {bag}" if bag else " | not recorded")
