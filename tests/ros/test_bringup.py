@@ -375,6 +375,8 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("fleet.launch.py", ["stall_timeout:=1min"], "launch argument stall_timeout must be a number of wall "
              "seconds (0 = never), got '1min'"),
             ("fleet.launch.py", ["without:=mixer,mixer"], "launch argument without: node 'mixer' is named twice"),
+            ("fleet.launch.py", ["group:=simulator,mixer;mixer"], "launch argument group: node 'mixer' is in two "
+             "groups"),
             ("bb2_graph.launch.py", ["namespace:=9boat"], "launch argument namespace must be a ROS 2 namespace "
              "(segments of letters, digits and '_', each starting with a letter, separated by '/'), got '9boat'"),
             ("fleet.launch.py", ["boats:=boat1,boat-2"], "launch argument boats: a boat must be a ROS 2 namespace"),
@@ -564,3 +566,25 @@ def frames(bag: Path, vehicle: str | None = None) -> dict[str, set[str]]:
         else:
             got.add(msg.header.frame_id)
     return out
+
+
+def test_fleet_compose_true_flies_each_boat_in_a_container_of_its_own(ws):
+    """``fleet.launch.py compose:=true`` (bb2-launch FLEET --compose): each boat's planner, controllers and
+    simulator in one container process of its own (container_boat1, container_boat2), the fleet's recorder alone;
+    each boat's recorded states equal the library runner's, and each container's exit is its boat's end."""
+    env, install, tmp = ws
+    p = launch(ws, claimed_domain(), "fleet.launch.py", "boats:=boat1,boat2", f"missions:={tmp / 'short.yaml'}",
+               f"bag_dir:={tmp / 'fleet_composed'}", "compose:=true")
+    out = finish(p, 240)
+    assert p.returncode == 0 and "2 of 2 boats done" in out, out[-3000:]
+    assert "/boat1/container exited (code 0)" in out and "/boat2/container exited (code 0)" in out, out[-3000:]
+    started = re.findall(r"\[INFO\] \[([\w+-]+)-\d+\]: process started with pid", out)
+    assert sorted(started) == ["container_boat1", "container_boat2", "nice"], started  # nice: the recorder
+    assert not died_but_teardown_hangs(out), out[-3000:]
+    (bag,) = (tmp / "fleet_composed").iterdir()
+    ref = {row[0]: row[1:] for row in library_trajectory(tmp / "short.yaml")}
+    for b in ("boat1", "boat2"):
+        got = states(bag, b)
+        assert len(got) == len(ref) == 51, (b, len(got), len(ref))
+        for t, x in ref.items():
+            assert np.max(np.abs(np.array(got[t][1:13]) - x)) <= 1e-9, (b, t)

@@ -18,6 +18,11 @@ with its own controllers (deterministic: a boat's run equals the same mission fl
                each boat's namespace (as in bb2_graph.launch.py)
   stall_timeout  wall s (default 60; 0 = never) of stepping on the failsafe after which a boat's simulator stops
                its run as stalled (an error: the launch fails once every boat has ended; bb2_graph.launch.py)
+  compose      true | false: each boat's planner, controllers and simulator in one container process of its own
+               (container_boat1 ...; bb2-launch FLEET --compose), the fleet's recorder alone
+  group        '' or NODE,NODE[,...][;NODE,NODE...]: each boat's groups of nodes in container processes of its own
+               (e.g. group:=path_following,l1_autopilot,mixer: every boat's control loop in one process), as in
+               bb2_graph.launch.py (bb2-launch FLEET --group)
 
 The launch ends when every boat's simulator has ended its run, with exit code 1 when any boat's simulator exited
 with an error (the other boats fly on to their end); a boat's other nodes stop when its simulator ends; any other
@@ -56,6 +61,8 @@ ARGUMENTS = {
     "params_file": (graph.ARGUMENTS["params_file"][0], "the graph's ROS 2 params file"),
     "without": ("", "'' or NODE[,NODE...]: every boat's nodes left out, yours in their place (bb2_graph.launch.py)"),
     "stall_timeout": graph.ARGUMENTS["stall_timeout"],
+    "compose": ("false", "true | false: each boat's planner, controllers and simulator in one container process"),
+    "group": graph.ARGUMENTS["group"],
 }
 
 
@@ -78,6 +85,9 @@ def _fleet(context):
     params_file = graph.checked_params_file(a["params_file"])
     without = graph.check_without(a["without"], "launch argument without")
     stall = graph.check_stall_timeout(a["stall_timeout"], "launch argument stall_timeout")
+    groups = graph.checked_groups(a["group"], graph.flag(a["compose"], "compose"), without)
+    # the process of each boat that holds its simulator (its exit is the boat's end)
+    holder = next((graph.process_name(g) for g in groups if "simulator" in g and len(g) > 1), "simulator")
     overridden = graph.overridden_by_arguments(params_file, a, stall)
     # the bag directory, claimed as bb2-launch claims its run directory (fleet_<date>, _2 ... when taken)
     root = graph.claim_bag("", a["bag_dir"], f"{name}_{time.strftime('%Y%m%d_%H%M%S')}") if record else None
@@ -98,9 +108,11 @@ def _fleet(context):
         for (ns, mission), (_ns, warning) in zip(checked, warnings):
             acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=None, namespace=ns,
                               params_file=params_file, stop_launch=False, own_recorder=False, without=without,
-                              stall_timeout_s=stall)
+                              stall_timeout_s=stall, groups=groups)
             sims.append(acts[-1])
-            actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}"),
+            actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}" + (
+                            f" | composed: {', '.join(graph.process_name(g) for g in groups if len(g) > 1)}"
+                            if groups else "")),
                         *([LogInfo(msg=f"[bb2_bringup] warning: /{ns}: {warning}")] if warning else []), *acts]
     failed: list[str] = []
     names = {id(sim): ns for sim, ns in zip(sims, boats)}
@@ -110,11 +122,11 @@ def _fleet(context):
         ns = names.get(id(event.action), "?")
         if event.returncode != 0 and not context.is_shutdown:
             failed.append(f"/{ns} (code {event.returncode})")
-        out = [LogInfo(msg=f"[bb2_bringup] /{ns}/simulator exited "
+        out = [LogInfo(msg=f"[bb2_bringup] /{ns}/{holder} exited "
                            f"(code {event.returncode}); {len(ended)} of {len(sims)} boats done")]
         if len(ended) == len(sims):
             if failed:  # the other boats flew on; an exception is how ``ros2 launch`` exits non-zero
-                out.append(graph.fail(f"{len(failed)} of {len(sims)} boats' runs failed: the simulator of "
+                out.append(graph.fail(f"{len(failed)} of {len(sims)} boats' runs failed: the {holder} of "
                                       f"{', '.join(failed)} exited with an error (its log above says why)"))
             else:
                 out.append(EmitEvent(event=Shutdown(reason="every boat ended its run")))
