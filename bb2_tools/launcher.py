@@ -906,15 +906,16 @@ NOT_RESTARTABLE = {
 """Nodes whose ``restart`` policy is refused up front, and why (one line each)."""
 
 
-def check_restart_policies(policies: Mapping[str, RestartPolicy], groups: Sequence[Sequence[str]] = ()) -> None:
+def check_restart_policies(policies: Mapping[str, RestartPolicy], groups: Sequence[Sequence[str]] = (),
+                           option: str = "--restart") -> None:
     """Refuse, before anything starts, a restart policy that could not rejoin the run (:data:`NOT_RESTARTABLE`),
-    also for a composed process holding such a node (it restarts as a whole)."""
+    also for a composed process holding such a node (it restarts as a whole); ``option``: what the error names."""
     for name, why in NOT_RESTARTABLE.items():
         group = next((g for g in groups if name in g), (name,))
         pol = policies.get(process_name(group))
         if pol is not None and pol.action == "restart":
             where = "" if len(group) == 1 else f" (composed in '{process_name(group)}', which restarts as a whole)"
-            raise LaunchError(f"--restart: restarting the {name}{where} is refused: {why}")
+            raise LaunchError(f"{option}: restarting the {name}{where} is refused: {why}")
 
 
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:

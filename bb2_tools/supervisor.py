@@ -52,9 +52,11 @@ class RestartPolicy:
 
 
 def parse_restart_policies(specs: Iterable[str], known: Iterable[str],
-                           default_max: int = DEFAULT_MAX_RESTARTS) -> dict[str, RestartPolicy]:
+                           default_max: int = DEFAULT_MAX_RESTARTS,
+                           option: str = "--restart") -> dict[str, RestartPolicy]:
     """Parse ``["simulator=stop,recorder=restart:5", "mixer=ignore"]`` into policies per node; ``default_max``: the
-    count of a ``restart`` without one (``--max-restarts``)."""
+    count of a ``restart`` without one (``--max-restarts``); ``option``: what the errors name (the launch files':
+    ``launch argument restart``)."""
     if default_max < 0:
         raise LaunchError(f"--max-restarts must be >= 0, got {default_max}")
     known = list(known)
@@ -63,21 +65,21 @@ def parse_restart_policies(specs: Iterable[str], known: Iterable[str],
         for item in filter(None, (s.strip() for s in spec.split(","))):
             name, sep, value = item.partition("=")
             if not sep or not name or not value:
-                raise LaunchError(f"--restart expects NODE=POLICY items, got {item!r}")
+                raise LaunchError(f"{option} expects NODE=POLICY items, got {item!r}")
             if name not in known and name != "all":
-                raise LaunchError(f"--restart: unknown node {name!r}" + did_you_mean(name, [*known, "all"])
+                raise LaunchError(f"{option}: unknown node {name!r}" + did_you_mean(name, [*known, "all"])
                                   + f"; nodes: {', '.join(known)} (or all)")
             action, _, n = value.partition(":")
             try:
                 max_n = int(n) if n else default_max
             except ValueError:
-                raise LaunchError(f"--restart: bad restart count in {item!r} (restart:N, N >= 0)") from None
+                raise LaunchError(f"{option}: bad restart count in {item!r} (restart:N, N >= 0)") from None
             try:
                 policy = RestartPolicy(action, max_n)
             except LaunchError as exc:  # which item, with the policy's own words
-                raise LaunchError(f"--restart {item}: {exc}") from None
+                raise LaunchError(f"{option} {item}: {exc}") from None
             if n and action != "restart":
-                raise LaunchError(f"--restart: a count only goes with 'restart', got {item!r}")
+                raise LaunchError(f"{option}: a count only goes with 'restart', got {item!r}")
             for target in (known if name == "all" else [name]):
                 out[target] = policy
     return out

@@ -377,6 +377,14 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
             ("fleet.launch.py", ["without:=mixer,mixer"], "launch argument without: node 'mixer' is named twice"),
             ("fleet.launch.py", ["group:=simulator,mixer;mixer"], "launch argument group: node 'mixer' is in two "
              "groups"),
+            ("bb2_graph.launch.py", ["restart:=mixr=restart"], "launch argument restart: unknown node 'mixr' (did "
+             "you mean 'mixer'?)"),
+            ("bb2_graph.launch.py", ["restart:=simulator=restart"], "launch argument restart: restarting the "
+             "simulator is refused: a new simulator starts again at t = 0"),
+            ("bb2_graph.launch.py", ["record:=true", f"bag:={tmp / 'unused'}", "restart:=recorder=restart"],
+             "launch argument restart: restarting the recorder is refused here: a new recorder would write over"),
+            ("fleet.launch.py", ["compose:=true", "restart:=container=ignore"], "launch argument restart: "
+             "container=ignore: the container's exit is the run's end"),
             ("bb2_graph.launch.py", ["namespace:=9boat"], "launch argument namespace must be a ROS 2 namespace "
              "(segments of letters, digits and '_', each starting with a letter, separated by '/'), got '9boat'"),
             ("fleet.launch.py", ["boats:=boat1,boat-2"], "launch argument boats: a boat must be a ROS 2 namespace"),
@@ -457,6 +465,42 @@ def test_a_node_that_dies_mid_run_stops_the_launch_with_exit_code_1(ws):
               if not ((pid in unreaped and code == "255") or (code == "1" and f"[{name}] Timeout (" in out))]
     assert others == [("mixer-4", "-9")], out[-3000:]
     assert out.count("process has finished cleanly") + len(died) == 5, out[-3000:]
+
+
+def test_restart_policies_respawn_a_killed_controller_and_the_run_goes_on_to_its_end(ws):
+    """``restart:=mixer=restart:1,path_following=restart:1`` (bb2-launch ``--restart``): the mixer and the path
+    follower SIGKILLed mid-run are started again by launch (its respawn), the path follower rejoins the run where it
+    stands, and the run flies on to its end: exit 0, every step in the bag, where the default policy (stop) fails the
+    launch (test above)."""
+    env, install, tmp = ws
+    (tmp / "mid.yaml").write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nname: mid\nduration_s: 20\n")
+    domain = claimed_domain()
+    p = launch(ws, domain, "bb2_graph.launch.py", f"mission:={tmp / 'mid.yaml'}", f"bag:={tmp / 'restarted'}",
+               "restart:=mixer=restart:1,path_following=restart:1")
+    seen: list[str] = []
+    drain = threading.Thread(target=lambda: seen.extend(p.stdout), daemon=True)
+    drain.start()
+    try:
+        wait_for_clock(domain, 2.0, timeout_s=120)
+        for exe in ("mixer", "path_following"):
+            (pid,) = [pid for pid in descendants(p.pid) if f"lib/bb2_ros/{exe}" in command_line(pid)]
+            os.kill(pid, signal.SIGKILL)
+        p.wait(180)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait(30)
+        drain.join(10)
+    out = "".join(seen)
+    assert p.returncode == 0, out[-3000:]
+    assert "the mixer was killed by signal 9 before the run's end: restarting it (restart 1 of 1)" in out, out[-3000:]
+    assert "the path_following was killed by signal 9 before the run's end: restarting it (restart 1 of 1)" in out
+    for exe in ("mixer", "path_following"):
+        assert len(re.findall(rf"\[{exe}-\d+\]: process started with pid", out)) == 2, (exe, out[-3000:])
+    assert "joined a run under way at t = " in out, out[-3000:]   # the path follower rejoined, not at t = 0
+    assert "simulator exited (code 0): stopping the graph" in out, out[-3000:]
+    got = states(tmp / "restarted")
+    assert len(got) == 401 and max(got) == pytest.approx(20.0), (len(got), max(got))
 
 
 def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):

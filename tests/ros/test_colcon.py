@@ -89,7 +89,7 @@ def test_colcon_build_the_whole_workspace(env, tmp_path, mode):
                         "ros2 launch bb2_bringup bb2_graph.launch.py --show-args"], env=env, capture_output=True,
                        text=True, timeout=120)
     assert r.returncode == 0, r.stderr
-    for arg in ("mission", "time_mode", "record", "namespace", "params_file"):
+    for arg in ("mission", "time_mode", "record", "namespace", "params_file", "compose", "group", "restart"):
         assert f"'{arg}'" in r.stdout, r.stdout
 
 

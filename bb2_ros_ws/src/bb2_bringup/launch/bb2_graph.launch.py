@@ -25,6 +25,12 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
                nodes of your own in their place on the contract's topics (your autopilot: without:=l1_autopilot,mixer;
                run it with ``ros2 run`` on the same ROS_DOMAIN_ID). In lockstep the simulator waits for the answer to
                each step (the first up to startup_timeout_s, 30 s), in real time for the first command.
+  restart      '' or NODE=POLICY[,NODE=POLICY...] (bb2-launch --restart): what a node's death before the run's end
+               does -- stop (the default: every node stopped, the launch fails), restart[:N] (launch's respawn, up to
+               N times, default 3; a restarted path follower rejoins the run where it stands) or ignore (said, the run
+               goes on); NODE is a node, a group's process (path_following+l1_autopilot+mixer) or all; the simulator
+               takes stop only (its exit is the run's end), the recorder stop or ignore (a new one would write over
+               the run's bag)
   stall_timeout  wall s (default 60; 0 = never) of stepping on the failsafe without a break -- no controller
                answers: your node not started, or on another domain -- after which the simulator stops the run as
                stalled and the launch fails (bb2-launch --stall-timeout), rather than crawl on neutral planes;
@@ -74,9 +80,11 @@ from bb2_sim.names import did_you_mean
 from bb2_sim.outputs import OutputError, claim_run_dir
 from bb2_ros.node_common import CALLBACK_PRIORITY_REALTIME, REALTIME_CONTROLLERS
 from bb2_tools.dds_shm import clean_after_kill
-from bb2_tools.launcher import (BACKGROUND_NODES, COMPOSABLE, DEFAULT_STALL_TIMEOUT_S, check_foxglove_port,
-                                check_mission, check_params_file, check_stall_timeout, check_without,
-                                compose_groups, launcher_parameters, params_overridden, process_name)
+from bb2_tools.launcher import (BACKGROUND_NODES, COMPOSABLE, DEFAULT_STALL_TIMEOUT_S, REJOINING, check_foxglove_port,
+                                check_mission, check_params_file, check_restart_policies, check_stall_timeout,
+                                check_without, compose_groups, launcher_parameters, params_overridden, process_name,
+                                process_names)
+from bb2_tools.supervisor import RestartPolicy, parse_restart_policies
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
 BACKGROUND = "nice -n 10"  # off the control loop, as bb2-launch starts them
@@ -98,7 +106,11 @@ ARGUMENTS = {
                     "your own in their place (your autopilot: without:=l1_autopilot,mixer)"),
     "stall_timeout": (f"{DEFAULT_STALL_TIMEOUT_S:g}", "wall s of stepping on the failsafe (no controller answers) "
                       "after which the run stops as stalled and the launch fails; 0 = never"),
+    "restart": ("", "'' or NODE=POLICY[,...]: a node's death before the run's end stops the graph and fails the launch "
+                    "(stop, the default), restarts it (restart[:N], N default 3) or is said (ignore); NODE may be all"),
 }
+RESPAWN_DELAY_S = 0.5
+"""Wall s before launch respawns a node under a ``restart`` policy (bb2-launch's first restart delay)."""
 
 
 def installed_or_file(value: str, folder: Path, what: str) -> Path:
@@ -195,12 +207,14 @@ def container_arguments(nodes: list[tuple[str, dict]], params: list[str], ns: st
 def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, namespace: str, params_file: str,
          stop_launch: bool = True, compose: bool = False, foxglove_port: int | None = None,
          own_recorder: bool = True, without: tuple[str, ...] = (),
-         stall_timeout_s: float = DEFAULT_STALL_TIMEOUT_S, groups: list[tuple[str, ...]] | None = None) -> list:
+         stall_timeout_s: float = DEFAULT_STALL_TIMEOUT_S, groups: list[tuple[str, ...]] | None = None,
+         restart: dict[str, RestartPolicy] | None = None) -> list:
     """The actions of one boat's graph (the nodes; with ``stop_launch`` the simulator's exit ends the launch,
     without it the simulator's exit stops this boat's other nodes;
     ``compose``: every node but the recorder (and those left out) in one container process; ``groups``
     (:func:`checked_groups`; over ``compose``): each group of nodes in a container process of its own, the others
-    alone; ``foxglove_port``: the live Foxglove
+    alone; ``restart``: the processes' policies when they die before the run's end (:func:`checked_restart`);
+    ``foxglove_port``: the live Foxglove
     server on that port; ``record`` without ``own_recorder``: recorded by a recorder of the caller's, a fleet's
     (:func:`fleet_recorder`), which the simulator waits for as for its own; ``without``: nodes not started, a
     user's own in their place, :func:`bb2_tools.launcher.check_without`; ``stall_timeout_s``: the simulator stops
@@ -210,11 +224,20 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     common = {"mission_file": str(mission)}
     params = [params_file] if params_file else []
 
+    policies = restart or {}
+
+    def respawn(name: str) -> dict:
+        """launch's respawn of process ``name`` under a ``restart`` policy (as many times as it allows)."""
+        pol = policies.get(name)
+        if pol is None or pol.action != "restart":
+            return {}
+        return {"respawn": True, "respawn_delay": RESPAWN_DELAY_S, "respawn_max_retries": pol.max_restarts}
+
     def node(package, executable, extra, *, background=False, arguments=()):
         return Node(package=package, executable=executable, name=executable, namespace=ns or None,
                     parameters=[*params, {**common, **extra}] if package == "bb2_ros" else [extra],
                     remappings=remappings(ns), arguments=list(arguments), output="screen",
-                    prefix=BACKGROUND if background else None)
+                    prefix=BACKGROUND if background else None, **respawn(executable))
 
     actions = []
     run_over: list[bool] = []   # [True] once this boat's simulator has exited: its nodes may go after it
@@ -224,7 +247,7 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
         # (overwrite: the directory holds the claim file of claim_bag, as bb2-launch's run directory does)
         actions.append(node("bb2_tools", "recorder", {"bag_directory": str(bag), "use_sim_time": True,
                                                       "overwrite": True}, background=True))
-        actions.append(watch(actions[-1], who("recorder"), lambda: bool(run_over)))
+        actions.append(watch(actions[-1], who("recorder"), lambda: bool(run_over), policy=policies.get("recorder")))
     if foxglove_port is not None:
         actions.append(node("bb2_tools", "foxglove_bridge", {"port": int(foxglove_port), "use_sim_time": True},
                             background=True))
@@ -245,22 +268,28 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     grouped = {n for g in groups for n in g}
     values = {exe: {"use_sim_time": True, **(rt if exe in REALTIME_CONTROLLERS else {})} for exe, _bg in controllers}
     values["simulator"] = sim_values
+    # a restarted node rejoins the run where it stands (bb2-launch sets it on a restart only; launch's respawn runs
+    # the same command, and the first start answers the state of t = 0, which rejoins nothing)
+    for name, param in REJOINING.items():
+        holder = next((process_name(g) for g in groups if name in g), name)
+        if name in values and getattr(policies.get(holder), "action", None) == "restart":
+            values[name] = {**values[name], param: True}
     sim = None
     for exe, bg in controllers:
         if exe not in grouped:
             actions.append(node("bb2_ros", exe, values[exe], background=bg))
-            actions.append(watch(actions[-1], who(exe), lambda: bool(run_over)))
+            actions.append(watch(actions[-1], who(exe), lambda: bool(run_over), policy=policies.get(exe)))
     for g in groups:   # each group's nodes in a container process of its own, in the graph's start order
         name = process_name(g)
         proc = ExecuteProcess(cmd=[ExecutableInPackage("container", "bb2_ros"),
                                    *container_arguments([(exe, {**common, **values[exe]}) for exe in g], params, ns)],
                               name=name + (f"_{ns}" if ns else ""), output="screen",
-                              prefix=BACKGROUND if set(g) <= set(BACKGROUND_NODES) else None)
+                              prefix=BACKGROUND if set(g) <= set(BACKGROUND_NODES) else None, **respawn(name))
         if "simulator" in g:
             sim, what = proc, name
         else:
             actions.append(proc)
-            actions.append(watch(proc, who(name), lambda: bool(run_over)))
+            actions.append(watch(proc, who(name), lambda: bool(run_over), policy=policies.get(name)))
     if sim is None:
         sim, what = node("bb2_ros", "simulator", sim_values), "simulator"
     # the boat's other nodes (not a fleet's recorder) go with its run: in a fleet the other boats may fly on (as
@@ -304,27 +333,57 @@ def checked_groups(value: str, compose: bool, without: tuple[str, ...] = ()) -> 
     return groups
 
 
+def checked_restart(value: str, groups: list[tuple[str, ...]], record: bool,
+                    without: tuple[str, ...] = ()) -> dict[str, RestartPolicy]:
+    """The restart policies of launch argument ``restart`` (``NODE=POLICY,...``, bb2-launch ``--restart``'s words:
+    :func:`bb2_tools.supervisor.parse_restart_policies`) for the processes of this graph (its nodes, ``groups``'
+    processes, not those ``without`` leaves out), refused as bb2-launch refuses them (the simulator restarted), and
+    what a launch file cannot do: the process holding the simulator ignored (its exit is the run's end), the recorder
+    restarted (a new one would write over the run's bag: bb2-launch starts a bag of its own for it)."""
+    option = "launch argument restart"
+    names = [n for n in process_names(groups) if n not in without and (record or n != "recorder")]
+    policies = parse_restart_policies([value], names, option=option)
+    check_restart_policies(policies, groups, option=option)
+    holder = next((process_name(g) for g in groups if "simulator" in g), "simulator")
+    if getattr(policies.get(holder), "action", None) == "ignore":
+        raise RuntimeError(f"{option}: {holder}=ignore: the {holder}'s exit is the run's end (stop, its default)")
+    if getattr(policies.get("recorder"), "action", None) == "restart":
+        raise RuntimeError(f"{option}: restarting the recorder is refused here: a new recorder would write over the "
+                           "run's bag (bb2-launch --restart recorder=restart gives it a bag of its own); use "
+                           "recorder=stop or recorder=ignore")
+    return policies
+
+
 def check_time_mode(time_mode: str) -> str:
     if time_mode not in ("lockstep", "realtime"):
         raise RuntimeError(f"launch argument time_mode must be lockstep or realtime, got {time_mode!r}")
     return time_mode
 
 
-def watch(action, who: str, run_over, *, essential: bool = True) -> RegisterEventHandler:
+def watch(action, who: str, run_over, *, essential: bool = True,
+          policy: RestartPolicy | None = None) -> RegisterEventHandler:
     """A handler of ``action``'s exit (a node's process; ``who`` names it) before the run is over (``run_over()``
     false) and the launch is not stopping: an ``essential`` node's fails the launch (exit 1, every node stopped:
     without a controller the simulator would step on held planes, one step a second, and without the recorder
     it waits for a reader; bb2-launch stops the graph the same way); any other's is said and the run goes on.
     A process killed by a signal (whenever) left its Fast DDS shared-memory files: they go at once
-    (:func:`cleaned_after_kill`), as bb2-launch removes them after its run."""
+    (:func:`cleaned_after_kill`), as bb2-launch removes them after its run.  ``policy`` (launch argument
+    ``restart``): ``ignore`` makes the node not essential; ``restart`` says each of its ``max_restarts`` restarts
+    (launch respawns it: :func:`boat`) and fails the launch at the next death."""
+    restarts = [0]
+
     def on_exit(event, context):
         rc = event.returncode
         said = cleaned_after_kill(rc, who)
         if context.is_shutdown or run_over():
             return said or None
         how = f"was killed by signal {-rc}" if rc < 0 else f"exited (code {rc})"
-        if not essential:
+        if not essential or (policy is not None and policy.action == "ignore"):
             return [*said, LogInfo(msg=f"[bb2_bringup] {who} {how}: the run goes on without it")]
+        if policy is not None and policy.action == "restart" and restarts[0] < policy.max_restarts:
+            restarts[0] += 1
+            return [*said, LogInfo(msg=f"[bb2_bringup] {who} {how} before the run's end: restarting it (restart "
+                                       f"{restarts[0]} of {policy.max_restarts})")]
         return [*said, fail(f"{who} {how} before the run's end: stopping the graph (the run is not whole; its log "
                             "above says why)")]
     return RegisterEventHandler(OnProcessExit(target_action=action, on_exit=on_exit))
@@ -396,6 +455,7 @@ def _graph(context):
     ns = check_namespace(a["namespace"], "launch argument namespace")  # (launch_ros refuses it later, in its words)
     compose = flag(a["compose"], "compose")
     groups = checked_groups(a["group"], compose, without)
+    restart = checked_restart(a["restart"], groups, record, without)
     overridden = overridden_by_arguments(params_file, a, stall, mission)
     # claimed last, every other check passed: a refused launch leaves no directory behind
     # (a nested namespace as bb2-launch names it: one directory, boat_a_b)
@@ -404,7 +464,7 @@ def _graph(context):
     with released_on_error(bag):
         acts = boat(mission, time_mode=a["time_mode"], record=record, bag=bag, namespace=ns,
                     params_file=params_file, foxglove_port=fox_port, without=without, stall_timeout_s=stall,
-                    groups=groups)
+                    groups=groups, restart=restart)
     said = LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
                        + (f" | composed: {', '.join(process_name(g) for g in groups if len(g) > 1)}" if groups
                           else "")

@@ -23,6 +23,8 @@ with its own controllers (deterministic: a boat's run equals the same mission fl
   group        '' or NODE,NODE[,...][;NODE,NODE...]: each boat's groups of nodes in container processes of its own
                (e.g. group:=path_following,l1_autopilot,mixer: every boat's control loop in one process), as in
                bb2_graph.launch.py (bb2-launch FLEET --group)
+  restart      '' or NODE=POLICY[,...]: what the death of a boat's node (or the fleet's recorder) before its run's end
+               does, for every boat: stop (default), restart[:N] or ignore, as in bb2_graph.launch.py
 
 The launch ends when every boat's simulator has ended its run, with exit code 1 when any boat's simulator exited
 with an error (the other boats fly on to their end); a boat's other nodes stop when its simulator ends; any other
@@ -63,6 +65,7 @@ ARGUMENTS = {
     "stall_timeout": graph.ARGUMENTS["stall_timeout"],
     "compose": ("false", "true | false: each boat's planner, controllers and simulator in one container process"),
     "group": graph.ARGUMENTS["group"],
+    "restart": graph.ARGUMENTS["restart"],
 }
 
 
@@ -88,6 +91,7 @@ def _fleet(context):
     groups = graph.checked_groups(a["group"], graph.flag(a["compose"], "compose"), without)
     # the process of each boat that holds its simulator (its exit is the boat's end)
     holder = next((graph.process_name(g) for g in groups if "simulator" in g and len(g) > 1), "simulator")
+    restart = graph.checked_restart(a["restart"], groups, record, without)
     overridden = graph.overridden_by_arguments(params_file, a, stall)
     # the bag directory, claimed as bb2-launch claims its run directory (fleet_<date>, _2 ... when taken)
     root = graph.claim_bag("", a["bag_dir"], f"{name}_{time.strftime('%Y%m%d_%H%M%S')}") if record else None
@@ -104,11 +108,12 @@ def _fleet(context):
         if record:
             recorder = graph.fleet_recorder(root, boats)
             actions += [LogInfo(msg=f"[bb2_bringup] fleet bag {root}"), recorder,
-                        graph.watch(recorder, "the fleet's recorder", lambda: len(ended) == len(sims))]
+                        graph.watch(recorder, "the fleet's recorder", lambda: len(ended) == len(sims),
+                                    policy=restart.get("recorder"))]
         for (ns, mission), (_ns, warning) in zip(checked, warnings):
             acts = graph.boat(mission, time_mode=a["time_mode"], record=record, bag=None, namespace=ns,
                               params_file=params_file, stop_launch=False, own_recorder=False, without=without,
-                              stall_timeout_s=stall, groups=groups)
+                              stall_timeout_s=stall, groups=groups, restart=restart)
             sims.append(acts[-1])
             actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}" + (
                             f" | composed: {', '.join(graph.process_name(g) for g in groups if len(g) > 1)}"
