@@ -385,6 +385,9 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
              "launch argument restart: restarting the recorder is refused here: a new recorder would write over"),
             ("fleet.launch.py", ["compose:=true", "restart:=container=ignore"], "launch argument restart: "
              "container=ignore: the container's exit is the run's end"),
+            ("bb2_graph.launch.py", ["timeout:=0"], "launch argument timeout must be > 0 and finite, got 0"),
+            ("fleet.launch.py", ["timeout:=5min"], "launch argument timeout must be wall seconds (or '' for none), "
+             "got '5min'"),
             ("bb2_graph.launch.py", ["namespace:=9boat"], "launch argument namespace must be a ROS 2 namespace "
              "(segments of letters, digits and '_', each starting with a letter, separated by '/'), got '9boat'"),
             ("fleet.launch.py", ["boats:=boat1,boat-2"], "launch argument boats: a boat must be a ROS 2 namespace"),
@@ -501,6 +504,24 @@ def test_restart_policies_respawn_a_killed_controller_and_the_run_goes_on_to_its
     assert "simulator exited (code 0): stopping the graph" in out, out[-3000:]
     got = states(tmp / "restarted")
     assert len(got) == 401 and max(got) == pytest.approx(20.0), (len(got), max(got))
+
+
+def test_timeout_stops_a_run_not_ended_in_time_and_fails_the_launch_with_the_bag_finished(ws):
+    """``timeout:=6`` (bb2-launch ``--timeout``): the canyon (475 s of mission) has not ended after 6 s of wall time,
+    so every node is stopped, the recorder finishes its bag, and ``ros2 launch`` exits 1 saying why."""
+    env, install, tmp = ws
+    t0 = time.monotonic()
+    p = launch(ws, claimed_domain(), "bb2_graph.launch.py", "mission:=canyon", f"bag:={tmp / 'timed_out'}",
+               "timeout:=6")
+    out = finish(p, 120)
+    assert p.returncode == 1, out[-3000:]
+    assert ("Caught exception in launch (see debug for traceback): timeout after 6 s of wall time (launch argument "
+            "timeout:=6): the run had not ended; stopping the graph") in out, out[-3000:]
+    assert time.monotonic() - t0 >= 6.0
+    assert "bb2-record: wrote" in out, out[-3000:]
+    got = states(tmp / "timed_out")   # the bag is whole up to the stop: the states from t = 0, none missing
+    ts = sorted(got)
+    assert ts[0] == 0.0 and len(ts) > 10 and np.allclose(np.diff(ts), 0.05), ts[:3]
 
 
 def test_fleet_flies_two_namespaced_boats_without_crosstalk(ws):

@@ -31,6 +31,8 @@ Arguments (``ros2 launch bb2_bringup bb2_graph.launch.py --show-args``):
                goes on); NODE is a node, a group's process (path_following+l1_autopilot+mixer) or all; the simulator
                takes stop only (its exit is the run's end), the recorder stop or ignore (a new one would write over
                the run's bag)
+  timeout      '' or wall s (bb2-launch --timeout): a run not ended by then is stopped (every node, the bag
+               finished) and the launch fails
   stall_timeout  wall s (default 60; 0 = never) of stepping on the failsafe without a break -- no controller
                answers: your node not started, or on another domain -- after which the simulator stops the run as
                stalled and the launch fails (bb2-launch --stall-timeout), rather than crawl on neutral planes;
@@ -60,6 +62,7 @@ as a node's does.
 from __future__ import annotations
 
 import contextlib
+import math
 import shutil
 import time
 from pathlib import Path
@@ -67,7 +70,7 @@ from pathlib import Path
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import (DeclareLaunchArgument, EmitEvent, ExecuteProcess, LogInfo, OpaqueFunction,
-                            RegisterEventHandler)
+                            RegisterEventHandler, TimerAction)
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown, matches_action
 from launch.events.process import ShutdownProcess
@@ -106,6 +109,7 @@ ARGUMENTS = {
                     "your own in their place (your autopilot: without:=l1_autopilot,mixer)"),
     "stall_timeout": (f"{DEFAULT_STALL_TIMEOUT_S:g}", "wall s of stepping on the failsafe (no controller answers) "
                       "after which the run stops as stalled and the launch fails; 0 = never"),
+    "timeout": ("", "'' or wall s: a run not ended by then is stopped (the bag finished) and the launch fails"),
     "restart": ("", "'' or NODE=POLICY[,...]: a node's death before the run's end stops the graph and fails the launch "
                     "(stop, the default), restarts it (restart[:N], N default 3) or is said (ignore); NODE may be all"),
 }
@@ -354,6 +358,22 @@ def checked_restart(value: str, groups: list[tuple[str, ...]], record: bool,
     return policies
 
 
+def wall_timeout(value: str) -> list:
+    """The actions of launch argument ``timeout`` (``''``: none; wall seconds > 0, as ``bb2-launch --timeout``): a
+    timer that fails the launch (every node stopped, as by Ctrl-C: the recorder finishes its bag) if the run has not
+    ended by then; cancelled by the launch's own end."""
+    if not value.strip():
+        return []
+    try:
+        t = float(value)
+    except ValueError:
+        raise RuntimeError(f"launch argument timeout must be wall seconds (or '' for none), got {value!r}") from None
+    if not (t > 0 and math.isfinite(t)):
+        raise RuntimeError(f"launch argument timeout must be > 0 and finite, got {value}")
+    return [TimerAction(period=t, actions=[fail(f"timeout after {t:g} s of wall time (launch argument timeout:="
+                                                f"{value.strip()}): the run had not ended; stopping the graph")])]
+
+
 def check_time_mode(time_mode: str) -> str:
     if time_mode not in ("lockstep", "realtime"):
         raise RuntimeError(f"launch argument time_mode must be lockstep or realtime, got {time_mode!r}")
@@ -456,6 +476,7 @@ def _graph(context):
     compose = flag(a["compose"], "compose")
     groups = checked_groups(a["group"], compose, without)
     restart = checked_restart(a["restart"], groups, record, without)
+    timer = wall_timeout(a["timeout"])
     overridden = overridden_by_arguments(params_file, a, stall, mission)
     # claimed last, every other check passed: a refused launch leaves no directory behind
     # (a nested namespace as bb2-launch names it: one directory, boat_a_b)
@@ -472,7 +493,8 @@ def _graph(context):
                        + (f" | without {', '.join(without)} (your nodes in their place)" if without else "")
                        + (f" | bag {bag}" if bag else " | not recorded")
                        + (f" | foxglove ws://127.0.0.1:{fox_port}" if fox else ""))
-    return [*overridden, *([LogInfo(msg=f"[bb2_bringup] warning: {warning}")] if warning else []), said, *acts]
+    return [*overridden, *([LogInfo(msg=f"[bb2_bringup] warning: {warning}")] if warning else []), said, *acts,
+            *timer]
 
 
 def generate_launch_description():

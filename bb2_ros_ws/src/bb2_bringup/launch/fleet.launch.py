@@ -23,6 +23,7 @@ with its own controllers (deterministic: a boat's run equals the same mission fl
   group        '' or NODE,NODE[,...][;NODE,NODE...]: each boat's groups of nodes in container processes of its own
                (e.g. group:=path_following,l1_autopilot,mixer: every boat's control loop in one process), as in
                bb2_graph.launch.py (bb2-launch FLEET --group)
+  timeout      '' or wall s: a fleet not ended by then is stopped (every node, the bag finished), the launch fails
   restart      '' or NODE=POLICY[,...]: what the death of a boat's node (or the fleet's recorder) before its run's end
                does, for every boat: stop (default), restart[:N] or ignore, as in bb2_graph.launch.py
 
@@ -66,6 +67,7 @@ ARGUMENTS = {
     "compose": ("false", "true | false: each boat's planner, controllers and simulator in one container process"),
     "group": graph.ARGUMENTS["group"],
     "restart": graph.ARGUMENTS["restart"],
+    "timeout": graph.ARGUMENTS["timeout"],
 }
 
 
@@ -92,6 +94,7 @@ def _fleet(context):
     # the process of each boat that holds its simulator (its exit is the boat's end)
     holder = next((graph.process_name(g) for g in groups if "simulator" in g and len(g) > 1), "simulator")
     restart = graph.checked_restart(a["restart"], groups, record, without)
+    timer = graph.wall_timeout(a["timeout"])
     overridden = graph.overridden_by_arguments(params_file, a, stall)
     # the bag directory, claimed as bb2-launch claims its run directory (fleet_<date>, _2 ... when taken)
     root = graph.claim_bag("", a["bag_dir"], f"{name}_{time.strftime('%Y%m%d_%H%M%S')}") if record else None
@@ -142,7 +145,7 @@ def _fleet(context):
     if scratch is not None:  # (the nodes read their missions as they start)
         actions.append(RegisterEventHandler(OnShutdown(on_shutdown=lambda _event, _context: shutil.rmtree(
             scratch, ignore_errors=True))))
-    return actions
+    return actions + timer
 
 
 def fleet_file(value: str) -> Path:
