@@ -16,6 +16,7 @@ from dataclasses import fields
 from typing import Any
 
 from bb2_tools.campaign.errors import SpecError
+from bb2_sim.names import unknown_keys_hint
 
 __all__ = ["MISSION_FIGURES", "NAVIGATION_FIGURES", "END_STATUS", "MANEUVER_FIGURE_CLASSES", "resolve_collect",
            "figure_kinds", "mission_values", "maneuver_values", "json_safe"]
@@ -103,7 +104,8 @@ def resolve_collect(target: str, maneuver: str | None, names: list[str] | None) 
     if bad:
         what = "mission summary" if target == "mission" else f"{maneuver} figures"
         known = [k for k, (f, _, _) in cat.items() if k == f]
-        raise SpecError(f"collect: unknown figure(s) {bad} of the {what}; known: {', '.join(known)}"
+        raise SpecError(f"collect: unknown figure(s) {bad}{unknown_keys_hint(bad, cat)} of the {what}; known: "
+                        f"{', '.join(known)}"
                         " (also without the unit suffix" + (", and *_deg for angles)" if target != "mission"
                                                              else ")"))
     return list(names)

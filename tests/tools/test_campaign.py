@@ -296,6 +296,8 @@ BAD = [
     ({"mission": "circle", "vary": {"name": ["a", "../b"]}}, "vary.name = '../b': name must be a plain name"),
     ({"mission": "circle", "vary": {"name": [1e3]}}, "vary.name = 1000.0: name must be a text"),
     ({"mission": "circle", "collect": ["rms_vertical", "rms_sideways"]}, "collect"),
+    ({"mission": "circle", "collect": ["rms_vertcal"]}, "collect: unknown figure(s) ['rms_vertcal'] (did you mean "
+                                                        "'rms_vertical'?) of the mission summary"),
     ({"mission": "circle", "vary": {"stack.guidance.d_mm": [100, 200]}}, "vary.stack.guidance.d_mm"),  # it flew d_m
     ({"maneuver": {"name": "barrel-roll"}}, "maneuver.name"),
     ({"maneuver": {"name": "turning-circle"}, "vary": {"rudder": [10, 20]}}, "vary.rudder"),
