@@ -326,15 +326,17 @@ def checked_groups(value: str, compose: bool, without: tuple[str, ...] = ()) -> 
     """The container processes of launch arguments ``group`` (``;``-separated groups of comma-separated nodes, as
     many ``bb2-launch --group``) and ``compose`` (with no group: every node but the recorder and those ``without``
     in one), checked as bb2-launch checks them (:func:`bb2_tools.launcher.compose_groups`: an unknown node, the
-    recorder, a node in two groups), and a node both grouped and left out refused."""
+    recorder, a node in two groups), and a node both grouped and left out refused.  A group of one node is that
+    node alone (none is returned)."""
     parts = [g for g in value.split(";") if g.strip()]
     if not parts:
-        return [tuple(n for n in COMPOSABLE if n not in without)] if compose else []
-    groups = compose_groups(parts, "launch argument group")
-    if clash := [n for g in groups for n in g if n in without]:
-        raise RuntimeError(f"launch arguments without and group both name {', '.join(clash)}: a node left out cannot "
-                           "be composed")
-    return groups
+        groups = [tuple(n for n in COMPOSABLE if n not in without)] if compose else []
+    else:
+        groups = compose_groups(parts, "launch argument group")
+        if clash := [n for g in groups for n in g if n in without]:
+            raise RuntimeError(f"launch arguments without and group both name {', '.join(clash)}: a node left out "
+                               "cannot be composed")
+    return [g for g in groups if len(g) > 1]
 
 
 def checked_restart(value: str, groups: list[tuple[str, ...]], record: bool,
@@ -487,8 +489,7 @@ def _graph(context):
                     params_file=params_file, foxglove_port=fox_port, without=without, stall_timeout_s=stall,
                     groups=groups, restart=restart)
     said = LogInfo(msg=f"[bb2_bringup] mission {mission} | {a['time_mode']}"
-                       + (f" | composed: {', '.join(process_name(g) for g in groups if len(g) > 1)}" if groups
-                          else "")
+                       + (f" | composed: {', '.join(map(process_name, groups))}" if groups else "")
                        + (f" | namespace /{ns}" if ns else "")
                        + (f" | without {', '.join(without)} (your nodes in their place)" if without else "")
                        + (f" | bag {bag}" if bag else " | not recorded")

@@ -92,7 +92,7 @@ def _fleet(context):
     stall = graph.check_stall_timeout(a["stall_timeout"], "launch argument stall_timeout")
     groups = graph.checked_groups(a["group"], graph.flag(a["compose"], "compose"), without)
     # the process of each boat that holds its simulator (its exit is the boat's end)
-    holder = next((graph.process_name(g) for g in groups if "simulator" in g and len(g) > 1), "simulator")
+    holder = next((graph.process_name(g) for g in groups if "simulator" in g), "simulator")
     restart = graph.checked_restart(a["restart"], groups, record, without)
     timer = graph.wall_timeout(a["timeout"])
     overridden = graph.overridden_by_arguments(params_file, a, stall)
@@ -118,9 +118,8 @@ def _fleet(context):
                               params_file=params_file, stop_launch=False, own_recorder=False, without=without,
                               stall_timeout_s=stall, groups=groups, restart=restart)
             sims.append(acts[-1])
-            actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}" + (
-                            f" | composed: {', '.join(graph.process_name(g) for g in groups if len(g) > 1)}"
-                            if groups else "")),
+            actions += [LogInfo(msg=f"[bb2_bringup] boat /{ns}: mission {mission}"
+                                + (f" | composed: {', '.join(map(graph.process_name, groups))}" if groups else "")),
                         *([LogInfo(msg=f"[bb2_bringup] warning: /{ns}: {warning}")] if warning else []), *acts]
     failed: list[str] = []
     names = {id(sim): ns for sim, ns in zip(sims, boats)}
