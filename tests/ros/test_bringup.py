@@ -373,8 +373,6 @@ def test_ros2_launch_refuses_a_bad_params_file_mission_or_port_before_any_node_s
              "composed"),
             ("bb2_graph.launch.py", ["group:=mixer;mixr,planner"], "launch argument group: unknown node 'mixr' (did "
              "you mean 'mixer'?); composable: planner, path_following, l1_autopilot, mixer, simulator"),
-            ("bb2_graph.launch.py", ["group:=mixer,planner;planner,simulator"], "launch argument group: node "
-             "'planner' is in two groups"),
             ("bb2_graph.launch.py", ["group:=l1_autopilot,mixer", "without:=mixer"], "launch arguments without and "
              "group both name mixer: a node left out cannot be composed"),
             ("bb2_graph.launch.py", ["mission:=canyn"], "no mission 'canyn' in "),
