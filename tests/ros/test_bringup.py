@@ -93,6 +93,32 @@ def finish(p: subprocess.Popen, timeout: float) -> str:
     return out
 
 
+def launch_and_kill(ws, args: tuple[str, ...], victims: tuple[str, ...], *, at_sim_s: float,
+                    wait_s: float) -> tuple[subprocess.Popen, str, dict[str, Path]]:
+    """``ros2 launch bb2_bringup ARGS``, its ``victims`` (executables of bb2_ros) SIGKILLed once the sim time passes
+    ``at_sim_s``; the ended launch, its output and each victim's Fast DDS segment (taken before the kill: a killed
+    process leaves it).  The launch is given ``wait_s`` to end after the kill (then SIGKILLed)."""
+    domain = claimed_domain()
+    p = launch(ws, domain, *args)
+    seen: list[str] = []
+    drain = threading.Thread(target=lambda: seen.extend(p.stdout), daemon=True)
+    drain.start()
+    segments: dict[str, Path] = {}
+    try:
+        wait_for_clock(domain, at_sim_s, timeout_s=120)
+        for exe in victims:
+            (pid,) = [pid for pid in descendants(p.pid) if f"lib/bb2_ros/{exe}" in command_line(pid)]
+            segments[exe] = own_dds_segment(pid)
+            os.kill(pid, signal.SIGKILL)
+        p.wait(wait_s)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait(30)
+        drain.join(10)
+    return p, "".join(seen), segments
+
+
 def test_ros2_launch_flies_a_mission_in_lockstep_and_records_the_bag_of_bb2_launch(ws):
     env, install, tmp = ws
     p = launch(ws, claimed_domain(), "bb2_graph.launch.py", f"mission:={tmp / 'short.yaml'}", "time_mode:=lockstep",
@@ -444,24 +470,10 @@ def test_a_failed_run_makes_ros2_launch_exit_1(ws):
 def test_a_node_that_dies_mid_run_stops_the_launch_with_exit_code_1(ws):
     """Without its mixer the simulator stepped on held planes, one step a second of wall time, for the rest of the
     mission (hours): a graph node that dies before the run's end now stops every node and fails the launch."""
-    env, install, tmp = ws
-    domain = claimed_domain()
-    p = launch(ws, domain, "bb2_graph.launch.py", "mission:=canyon", "record:=false")
-    seen: list[str] = []
-    drain = threading.Thread(target=lambda: seen.extend(p.stdout), daemon=True)
-    drain.start()
-    try:
-        wait_for_clock(domain, 1.0, timeout_s=120)
-        (mixer,) = [pid for pid in descendants(p.pid) if "lib/bb2_ros/mixer" in command_line(pid)]
-        segment = own_dds_segment(mixer)  # (a killed process leaves it)
-        os.kill(mixer, signal.SIGKILL)
-        p.wait(60)   # the canyon's 475 s of mission would take minutes even flown whole
-    finally:
-        if p.poll() is None:
-            os.killpg(p.pid, signal.SIGKILL)
-            p.wait(30)
-        drain.join(10)
-    out = "".join(seen)
+    # (the canyon's 475 s of mission would take minutes even flown whole)
+    p, out, segments = launch_and_kill(ws, ("bb2_graph.launch.py", "mission:=canyon", "record:=false"), ("mixer",),
+                                       at_sim_s=1.0, wait_s=60)
+    segment = segments["mixer"]
     assert p.returncode == 1, out[-3000:]
     assert "the mixer was killed by signal 9 before the run's end: stopping the graph" in out, out[-3000:]
     # what it left in /dev/shm went at once ("the mixer ended by a signal: 1 stale Fast DDS shared-memory segment
@@ -484,24 +496,9 @@ def test_restart_policies_respawn_a_killed_controller_and_the_run_goes_on_to_its
     launch (test above)."""
     env, install, tmp = ws
     (tmp / "mid.yaml").write_text(f"extends: {REPO / 'missions' / 'canyon.yaml'}\nname: mid\nduration_s: 20\n")
-    domain = claimed_domain()
-    p = launch(ws, domain, "bb2_graph.launch.py", f"mission:={tmp / 'mid.yaml'}", f"bag:={tmp / 'restarted'}",
-               "restart:=mixer=restart:1,path_following=restart:1")
-    seen: list[str] = []
-    drain = threading.Thread(target=lambda: seen.extend(p.stdout), daemon=True)
-    drain.start()
-    try:
-        wait_for_clock(domain, 2.0, timeout_s=120)
-        for exe in ("mixer", "path_following"):
-            (pid,) = [pid for pid in descendants(p.pid) if f"lib/bb2_ros/{exe}" in command_line(pid)]
-            os.kill(pid, signal.SIGKILL)
-        p.wait(180)
-    finally:
-        if p.poll() is None:
-            os.killpg(p.pid, signal.SIGKILL)
-            p.wait(30)
-        drain.join(10)
-    out = "".join(seen)
+    p, out, _ = launch_and_kill(ws, ("bb2_graph.launch.py", f"mission:={tmp / 'mid.yaml'}", f"bag:={tmp / 'restarted'}",
+                                     "restart:=mixer=restart:1,path_following=restart:1"),
+                                ("mixer", "path_following"), at_sim_s=2.0, wait_s=180)
     assert p.returncode == 0, out[-3000:]
     assert "the mixer was killed by signal 9 before the run's end: restarting it (restart 1 of 1)" in out, out[-3000:]
     assert "the path_following was killed by signal 9 before the run's end: restarting it (restart 1 of 1)" in out
