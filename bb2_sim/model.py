@@ -95,6 +95,17 @@ class BB2Model:
         self._flow_points_body = np.vstack([np.zeros((1, 3)), p.plane_points_body, p.section_points_body])
 
     # -------------------------------------------------------------------------------------------
+    def flow_points_earth(self, pos: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """The 21 flow points (the CG, the 5 planes, the 15 sections) in earth axes (21, 3), m, for the CG at
+        ``pos`` (earth) and the body->earth rotation ``R``."""
+        return pos + self._flow_points_body @ R.T
+
+    def sea_on_grid(self, sea) -> bool:
+        """Whether ``sea`` (or None) is a component sea whose pressure integral and orbital velocities come from one
+        pass of its wave-load grid (:meth:`flow_in_environment`): the grid method, no free-surface clipping."""
+        return sea is not None and sea.components is not None and self.wave_load_method == "grid" \
+            and not self.profile.free_surface_clipping
+
     def flow_in_environment(self, t: float, x: np.ndarray, R: np.ndarray, planes_deg: np.ndarray, sea, current,
                             wave: Wave, grid=None) -> tuple[np.ndarray, tuple[float, float, float], np.ndarray | None]:
         """What a component sea and/or a current do at the flow points of state ``x`` (R: its body->earth rotation):
@@ -110,9 +121,8 @@ class BB2Model:
         u, v, w = float(x[6]), float(x[7]), float(x[8])
         BFM = None
         # a component sea on the grid: the pressure integral (7) and the orbital velocities from one evaluation
-        fused = sea is not None and sea.components is not None and self.wave_load_method == "grid" \
-            and not prof.free_surface_clipping
-        e = None if fused and current is None else pos + self._flow_points_body @ R.T
+        fused = self.sea_on_grid(sea)
+        e = None if fused and current is None else self.flow_points_earth(pos, R)
         if fused:
             BFM, uw_e = self.hydro.loads_and_orbital_velocity(pos, R, t, planes_deg, sea, self._flow_points_body,
                                                               q12=not prof.wave_velocity_in_phase, grid=grid)
@@ -159,7 +169,7 @@ class BB2Model:
             uw_planes = np.zeros((5, 3))
             uw_sec = np.zeros((15, 3))
         else:
-            e = pos + self._flow_points_body @ R.T
+            e = self.flow_points_earth(pos, R)
             uw = orbital_velocity_earth(wave, e[:, 0], e[:, 2], t, prof.wave_velocity_in_phase) @ R
             uw_cg, uw_planes, uw_sec = uw[0], uw[1:6], uw[6:]
 

@@ -88,11 +88,9 @@ class BatchEnvironment:
         x (n, 12); R (3, 3, n); t scalar or (n,); act: the held actuator outputs (planes (n, 5), their rotations);
         pressure: the batch's :class:`.pressure.BatchPressure`."""
         prof = model.profile
-        fused_ok = model.wave_load_method == "grid" and not prof.free_surface_clipping
-        fused = [k for k, b in enumerate(boats.tolist())
-                 if fused_ok and self.seas[b] is not None and self.seas[b].components is not None]
-        rest = sorted(set(range(len(rows))) - set(fused))
-        for k in rest:
+        on_grid = [model.sea_on_grid(self.seas[b]) for b in boats.tolist()]
+        fused = [k for k, g in enumerate(on_grid) if g]
+        for k in (k for k, g in enumerate(on_grid) if not g):
             j, b = int(rows[k]), int(boats[k])
             sea, current = self.seas[b], self.currents[b]
             tj = t if np.ndim(t) == 0 else float(t[j])
@@ -119,7 +117,7 @@ class BatchEnvironment:
         for k, (j, b) in enumerate(zip(jf.tolist(), bf.tolist())):
             current = self.currents[b]
             if current is not None:                  # the scalar code's, boat by boat
-                e = x[j, 0:3] + model._flow_points_body @ Rf[k].T
+                e = model.flow_points_earth(x[j, 0:3], Rf[k])
                 uc, uvw_rel[:, j] = model.current_flow(e, Rf[k], current, float(x[j, 6]), float(x[j, 7]),
                                                        float(x[j, 8]))
                 uw_e[k] = uw_e[k] + uc
