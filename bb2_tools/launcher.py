@@ -605,6 +605,12 @@ def process_name(group: Sequence[str]) -> str:
     return CONTAINER.name if tuple(group) == COMPOSABLE else "+".join(group)
 
 
+def process_of(node: str, groups: Sequence[Sequence[str]]) -> str:
+    """The name of the process that runs ``node`` with these groups (:func:`process_name` of its group, or its own
+    when it is in none)."""
+    return process_name(next((g for g in groups if node in g), (node,)))
+
+
 def process_names(groups: Sequence[Sequence[str]]) -> list[str]:
     """Every process of the graph for these groups (the recorder included), in the node table's order."""
     grouped = {n for g in groups for n in g}
@@ -911,10 +917,10 @@ def check_restart_policies(policies: Mapping[str, RestartPolicy], groups: Sequen
     """Refuse, before anything starts, a restart policy that could not rejoin the run (:data:`NOT_RESTARTABLE`),
     also for a composed process holding such a node (it restarts as a whole); ``option``: what the error names."""
     for name, why in NOT_RESTARTABLE.items():
-        group = next((g for g in groups if name in g), (name,))
-        pol = policies.get(process_name(group))
+        proc = process_of(name, groups)
+        pol = policies.get(proc)
         if pol is not None and pol.action == "restart":
-            where = "" if len(group) == 1 else f" (composed in '{process_name(group)}', which restarts as a whole)"
+            where = "" if proc == name else f" (composed in '{proc}', which restarts as a whole)"
             raise LaunchError(f"{option}: restarting the {name}{where} is refused: {why}")
 
 

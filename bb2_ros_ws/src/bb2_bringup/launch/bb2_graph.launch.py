@@ -86,7 +86,7 @@ from bb2_tools.dds_shm import clean_after_kill
 from bb2_tools.launcher import (BACKGROUND_NODES, COMPOSABLE, DEFAULT_STALL_TIMEOUT_S, REJOINING, check_foxglove_port,
                                 check_mission, check_params_file, check_restart_policies, check_stall_timeout,
                                 check_without, compose_groups, launcher_parameters, params_overridden, process_name,
-                                process_names)
+                                process_names, process_of)
 from bb2_tools.supervisor import RestartPolicy, parse_restart_policies
 
 SHARE = Path(get_package_share_directory("bb2_bringup"))
@@ -275,9 +275,9 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
     # a restarted node rejoins the run where it stands (bb2-launch sets it on a restart only; launch's respawn runs
     # the same command, and the first start answers the state of t = 0, which rejoins nothing)
     for name, param in REJOINING.items():
-        holder = next((process_name(g) for g in groups if name in g), name)
-        if name in values and getattr(policies.get(holder), "action", None) == "restart":
+        if name in values and getattr(policies.get(process_of(name, groups)), "action", None) == "restart":
             values[name] = {**values[name], param: True}
+    what = process_of("simulator", groups)   # the process whose exit is the run's end
     sim = None
     for exe, bg in controllers:
         if exe not in grouped:
@@ -289,13 +289,13 @@ def boat(mission: Path, *, time_mode: str, record: bool, bag: Path | None, names
                                    *container_arguments([(exe, {**common, **values[exe]}) for exe in g], params, ns)],
                               name=name + (f"_{ns}" if ns else ""), output="screen",
                               prefix=BACKGROUND if set(g) <= set(BACKGROUND_NODES) else None, **respawn(name))
-        if "simulator" in g:
-            sim, what = proc, name
+        if name == what:
+            sim = proc
         else:
             actions.append(proc)
             actions.append(watch(proc, who(name), lambda: bool(run_over), policy=policies.get(name)))
     if sim is None:
-        sim, what = node("bb2_ros", "simulator", sim_values), "simulator"
+        sim = node("bb2_ros", "simulator", sim_values)
     # the boat's other nodes (not a fleet's recorder) go with its run: in a fleet the other boats may fly on (as
     # each boat's bb2-launch stops its own graph); alone the whole launch stops anyway
     own = [act for act in actions if isinstance(act, (Node, ExecuteProcess))]
@@ -350,7 +350,7 @@ def checked_restart(value: str, groups: list[tuple[str, ...]], record: bool,
     names = [n for n in process_names(groups) if n not in without and (record or n != "recorder")]
     policies = parse_restart_policies([value], names, option=option)
     check_restart_policies(policies, groups, option=option)
-    holder = next((process_name(g) for g in groups if "simulator" in g), "simulator")
+    holder = process_of("simulator", groups)
     if getattr(policies.get(holder), "action", None) == "ignore":
         raise RuntimeError(f"{option}: {holder}=ignore: the {holder}'s exit is the run's end (stop, its default)")
     if getattr(policies.get("recorder"), "action", None) == "restart":

@@ -92,7 +92,7 @@ def _fleet(context):
     stall = graph.check_stall_timeout(a["stall_timeout"], "launch argument stall_timeout")
     groups = graph.checked_groups(a["group"], graph.flag(a["compose"], "compose"), without)
     # the process of each boat that holds its simulator (its exit is the boat's end)
-    holder = next((graph.process_name(g) for g in groups if "simulator" in g), "simulator")
+    holder = graph.process_of("simulator", groups)
     restart = graph.checked_restart(a["restart"], groups, record, without)
     timer = graph.wall_timeout(a["timeout"])
     overridden = graph.overridden_by_arguments(params_file, a, stall)
